@@ -1,0 +1,178 @@
+"""Quintic clamped B-spline trajectories (paper §3.2, Eqs. 16–23; SPEC §2).
+
+Everything here is a pure ``jax.numpy`` function of the knots and control points, with
+static shapes, so it jits and vmaps. The knot vector is built from the six intervals
+``h_1..h_6``::
+
+    u = [0,0,0,0,0,0, t_1, t_2, t_3, t_4, t_5, T,T,T,T,T,T]      (Eq. 20; 17 knots)
+
+with ``t_k = h_1 + … + h_k`` and ``T = t_6``. The 11 control points are
+``d_0 = d_1 = d_2 = P_o``, ``d_3..d_7`` free, ``d_8 = d_9 = d_10 = P_e`` (Eqs. 18–19).
+
+For fast exact work the spline is converted, span by span, to local power series
+``p(t) = Σ_m c[k, m] (t − t_{k})^m`` on span ``k = 0..5`` (``[t_k, t_{k+1}]`` with
+``t_0 = 0``): the coefficients are the derivatives at the span's left knot, computed from
+the derivative control points of Eq. 22 and the Cox–de Boor basis (Eq. 16).
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+
+DEGREE = 5
+N_CTRL = 11
+N_KNOTS = N_CTRL + DEGREE + 1  # 17
+N_SPANS = 6
+
+__all__ = [
+    "DEGREE",
+    "N_SPANS",
+    "knots",
+    "control_points",
+    "line_control_points",
+    "basis_functions",
+    "derivative_control_points",
+    "span_coefficients",
+    "poly_derivative",
+    "poly_eval",
+    "poly_taylor",
+    "evaluate",
+]
+
+
+def knots(h):
+    """Knot vector of Eq. 20 from the six intervals. h: (..., 6) → (..., 17)."""
+    h = jnp.asarray(h)
+    t = jnp.cumsum(h, axis=-1)
+    zeros = jnp.zeros(h.shape[:-1] + (DEGREE + 1,), h.dtype)
+    ends = jnp.broadcast_to(t[..., -1:], h.shape[:-1] + (DEGREE + 1,))
+    return jnp.concatenate([zeros, t[..., :-1], ends], axis=-1)
+
+
+def control_points(start, goal, interior):
+    """Control points of Eqs. 18–19. start, goal: (d,); interior: (5, d) → (11, d)."""
+    interior = jnp.asarray(interior)
+    start = jnp.broadcast_to(jnp.asarray(start, interior.dtype), (3, interior.shape[-1]))
+    goal = jnp.broadcast_to(jnp.asarray(goal, interior.dtype), (3, interior.shape[-1]))
+    return jnp.concatenate([start, interior, goal], axis=0)
+
+
+def line_control_points(start, goal):
+    """Interior points ``d_3..d_7`` evenly spaced on the segment start→goal (SPEC §3). (5, d)."""
+    start, goal = jnp.asarray(start), jnp.asarray(goal)
+    s = jnp.arange(1, 6, dtype=start.dtype)[:, None] / 6.0
+    return start + s * (goal - start)
+
+
+def basis_functions(u, span: int, degree: int, t):
+    """The ``degree + 1`` nonzero basis functions ``N_{span−degree..span, degree}(t)`` (Eq. 16).
+
+    Cox–de Boor recursion in the triangular form of Piegl & Tiller, *The NURBS Book*,
+    Algorithm A2.2. ``span`` is a static index with ``u[span] <= t <= u[span + 1]`` and
+    ``u[span] < u[span + 1]``, so no denominator vanishes. u: (m,), t: scalar → (degree+1,).
+    """
+    left = [t - u[span + 1 - j] for j in range(1, degree + 1)]
+    right = [u[span + j] - t for j in range(1, degree + 1)]
+    n = [jnp.ones_like(t)]
+    for j in range(1, degree + 1):
+        saved = jnp.zeros_like(t)
+        new = []
+        for r in range(j):
+            temp = n[r] / (right[r] + left[j - r - 1])
+            new.append(saved + right[r] * temp)
+            saved = left[j - r - 1] * temp
+        new.append(saved)
+        n = new
+    return jnp.stack(n)
+
+
+def derivative_control_points(ctrl, u, order: int):
+    """Control points of the ``order``-th derivative spline (Eq. 22, repeated).
+
+    ``P^(m)_i = (p − m + 1)(P^(m−1)_{i+1} − P^(m−1)_i) / (u_{i+p+1} − u_{i+m})``; the
+    derivative of order m has degree ``p − m`` on the knots ``u[m : len(u) − m]`` (Eq. 23).
+    ctrl: (11, d), u: (17,) → (11 − order, d).
+    """
+    p = DEGREE
+    q = ctrl
+    for m in range(1, order + 1):
+        n = q.shape[0] - 1
+        den = u[p + 1 : p + 1 + n] - u[m : m + n]
+        q = (p - m + 1) * (q[1:] - q[:-1]) / den[:, None]
+    return q
+
+
+def span_coefficients(ctrl, u):
+    """Local power-series coefficients of the trajectory on each span.
+
+    Returns ``c`` (6, 6, d): on span k, ``p(t) = Σ_m c[k, m] τ^m`` with ``τ = t − u[5 + k]``;
+    ``c[k, m] = p^(m)(u[5+k]) / m!`` from the derivative control points of Eq. 22 evaluated
+    with the basis of Eq. 16 (Eq. 21). ctrl: (11, d), u: (17,).
+    """
+    p = DEGREE
+    derivs = [ctrl] + [derivative_control_points(ctrl, u, m) for m in range(1, p + 1)]
+    out = []
+    for k in range(N_SPANS):
+        j = p + k  # span index in the full knot vector
+        a = u[j]
+        coeffs = []
+        for m in range(p + 1):
+            deg = p - m
+            um = u[m : N_KNOTS - m]
+            if deg == 0:
+                val = derivs[m][k]
+            else:
+                nb = basis_functions(um, j - m, deg, a)
+                val = nb @ derivs[m][k : k + deg + 1]
+            coeffs.append(val / math.factorial(m))
+        out.append(jnp.stack(coeffs))
+    return jnp.stack(out)
+
+
+def poly_derivative(c, order: int = 1):
+    """Coefficients of the ``order``-th derivative of a power series along axis -1."""
+    for _ in range(order):
+        deg = c.shape[-1] - 1
+        c = c[..., 1:] * jnp.arange(1, deg + 1, dtype=c.dtype)
+    return c
+
+
+def poly_eval(c, x):
+    """Horner evaluation of ``Σ_m c[..., m] x^m`` (coefficients along the last axis)."""
+    out = c[..., -1]
+    for m in range(c.shape[-1] - 2, -1, -1):
+        out = out * x + c[..., m]
+    return out
+
+
+def poly_taylor(c, x, order: int | None = None):
+    """Normalised Taylor coefficients ``p^(k)(x)/k!``, k = 0..order, of a power series at x.
+
+    Repeated synthetic division by ``(τ − x)`` (Horner's shift). c: (..., n), x broadcastable
+    to ``c[..., 0]`` → (..., order + 1) (default order n − 1).
+    """
+    n_out = c.shape[-1] if order is None else order + 1
+    b = [c[..., m] for m in range(c.shape[-1])]
+    out = []
+    while len(out) < n_out:
+        accs = [b[-1]]
+        for m in range(len(b) - 2, -1, -1):
+            accs.append(accs[-1] * x + b[m])
+        out.append(accs[-1])
+        b = accs[-2::-1]
+    return jnp.stack(jnp.broadcast_arrays(*out), axis=-1)
+
+
+def evaluate(c, u, t, derivative: int = 0):
+    """Evaluate the spline (or a derivative) at times t from its span coefficients.
+
+    c: (6, 6, d) from :func:`span_coefficients`, u: (17,), t: (m,) in [0, T] → (m, d).
+    """
+    t = jnp.asarray(t)
+    inner = u[DEGREE + 1 : DEGREE + N_SPANS]  # t_1..t_5
+    k = jnp.searchsorted(inner, t, side="right")
+    tau = t - u[DEGREE + k]
+    ck = jnp.moveaxis(c[k], 1, -1)  # (m, d, 6)
+    return poly_eval(poly_derivative(ck, derivative), tau[:, None])

@@ -1,0 +1,56 @@
+"""Defaults of the paper and of ``SPEC.md``, written once.
+
+Units everywhere: seconds, millimetres, degrees.
+
+* Poses ``[x, y, z, pitch α, yaw β, roll γ]`` (SPEC §1, paper Eq. 34; the goal's Z sign
+  is corrected to -1515 as SPEC §1 explains).
+* Joint order (SPEC §4): ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``; within one
+  arm: axial (task Z), lift (task Y), lateral (task X), roll.
+* Limits (paper Table 2, SPEC §6) are given per arm joint in that order and apply to
+  both arms.
+"""
+
+from __future__ import annotations
+
+START: tuple[float, ...] = (775.0, -35.0, -1315.0, 0.2, -0.2, 190.0)
+"""Start pose ``P_o`` (paper Eq. 34)."""
+
+GOAL: tuple[float, ...] = (745.0, -5.0, -1515.0, 0.0, 0.0, 180.0)
+"""Goal pose ``P_e`` (paper Eq. 34, Z sign corrected per SPEC §1)."""
+
+ARM_DISTANCE: float = 2000.0
+"""Distance ``D_2`` between the two arm ends in mm (SPEC §4; the paper gives none)."""
+
+INTERVAL_BOUNDS: tuple[float, float] = (3.5, 10.0)
+"""Bounds of each knot interval ``h_k`` in s (SPEC §3)."""
+
+MARGIN: float = 0.1
+"""Relative margin ``m_k = 0.1 |Δ_k|`` of the control-point box (SPEC §3)."""
+
+ZERO_MOVE_MARGIN: tuple[float, ...] = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)
+"""Box half-margin where ``Δ_k = 0``: 1 mm for positions, 0.01° for angles (SPEC §3)."""
+
+# Per arm joint, in the order (axial d1 / task Z, lift d2 / task Y, lateral d3 / task X, roll θ).
+TRAVEL: tuple[float, ...] = (600.0, 50.0, 50.0, 15.0)
+"""Travel about home, mm or ° (paper Table 2)."""
+
+VELOCITY: tuple[float, ...] = (400.0, 25.0, 2.5, 6.8)
+"""|velocity| limits, mm/s or °/s (paper Table 2)."""
+
+ACCELERATION: tuple[float, ...] = (100.0, 100.0, 100.0, 240.0)
+"""|acceleration| limits, mm/s² or °/s² (paper Table 2)."""
+
+POSE_NAMES: tuple[str, ...] = ("x", "y", "z", "pitch", "yaw", "roll")
+POSE_UNITS: tuple[str, ...] = ("mm", "mm", "mm", "deg", "deg", "deg")
+JOINT_NAMES: tuple[str, ...] = ("d_L1", "d_L2", "d_L3", "theta_L", "d_R1", "d_R2", "d_R3", "theta_R")
+JOINT_UNITS: tuple[str, ...] = ("mm", "mm", "mm", "deg", "mm", "mm", "mm", "deg")
+QUANTITIES: tuple[str, ...] = ("travel", "velocity", "acceleration")
+
+N_INTERVALS = 6
+"""Six knot intervals ``h_1..h_6`` (SPEC §2)."""
+N_FREE = 5
+"""Five free control points ``d_3..d_7`` (SPEC §2)."""
+N_POSE = 6
+N_JOINTS = 8
+N_VAR = N_INTERVALS + N_FREE * N_POSE  # 36
+N_CON = 3 * N_JOINTS  # 24

@@ -1,0 +1,166 @@
+"""Exact extrema of low-degree polynomials on an interval, as array programs.
+
+The limits of SPEC §6 need ``max |q(t)|``, ``max |q'(t)|`` and ``max |q''(t)|`` on every knot
+span, where q is a quintic. The extrema of ``|Q|`` on ``[0, h]`` lie at the ends or at roots
+of ``Q'``, so the roots are found by the derivative chain: the roots of the jerk (a
+quadratic, closed form) split the span into pieces on which the acceleration is monotone,
+each holding at most one root of it, found by safeguarded Newton; the roots of the
+acceleration split it likewise for the velocity. No sampling, no Python loop over data:
+every function works elementwise on arrays of coefficients (any leading shape).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from .bspline import poly_derivative, poly_eval
+
+__all__ = ["quadratic_roots", "bracketed_root", "roots_in_brackets", "chain_extrema", "span_maxima"]
+
+NEWTON_STEPS = 8
+"""Safeguarded Newton steps per bracket (quadratic convergence; the value at a root of the
+derivative is accurate to second order in the root's error)."""
+
+
+def _safe_div(num, den):
+    ok = den != 0
+    return jnp.where(ok, num / jnp.where(ok, den, 1.0), 0.0), ok
+
+
+def quadratic_roots(c, lo, hi):
+    """Real roots of ``c0 + c1 τ + c2 τ²`` clipped to ``[lo, hi]``, sorted. c: (..., 3).
+
+    Numerically stable form (``q = −(c1 + sign(c1)√disc)/2``); a missing root is returned as
+    ``lo`` (harmless: the interval ends are always examined). Returns (..., 2).
+    """
+    c0, c1, c2 = c[..., 0], c[..., 1], c[..., 2]
+    disc = c1 * c1 - 4.0 * c2 * c0
+    real = disc >= 0.0
+    sq = jnp.sqrt(jnp.where(real, disc, 0.0))
+    q = -0.5 * (c1 + jnp.where(c1 >= 0.0, sq, -sq))
+    r1, ok1 = _safe_div(q, c2)
+    r2, ok2 = _safe_div(c0, q)
+    r1 = jnp.where(real & ok1, r1, lo)
+    r2 = jnp.where(real & ok2, r2, lo)
+    r1, r2 = jnp.clip(r1, lo, hi), jnp.clip(r2, lo, hi)
+    return jnp.stack([jnp.minimum(r1, r2), jnp.maximum(r1, r2)], axis=-1)
+
+
+CERTIFICATE = 1e-7
+"""Half-width, relative to the bracket, of the sign check that certifies a root."""
+
+
+def bracketed_root(c, dc, lo, hi, steps: int | None = None):
+    """Root of a polynomial monotone on ``[lo, hi]`` by safeguarded Newton (rtsafe).
+
+    c: (..., n) coefficients, dc their derivative; lo, hi: (...). Returns ``(x, width)``:
+    the root lies within ``width`` of x (a certificate: the sign of the polynomial is
+    checked on both sides of x, else the whole remaining bracket is the width). Where the
+    polynomial does not change sign on the bracket there is no root: the end with the
+    smaller ``|value|`` is returned with width 0 (any point of the bracket is harmless).
+    """
+    flo, fhi = poly_eval(c, lo), poly_eval(c, hi)
+    # A root at (or within rounding of) an end needs no search: the ends are examined
+    # anyway, and a monotone piece holds no other root. This also spares the double roots
+    # of the clamped ends (velocity and acceleration vanish at t = 0 and t = T).
+    reach = jnp.maximum(jnp.abs(lo), jnp.abs(hi))
+    scale = poly_eval(jnp.abs(c), reach)
+    tol = 64 * jnp.finfo(c.dtype).eps * scale
+    flo = jnp.where(jnp.abs(flo) <= tol, 0.0, flo)
+    fhi = jnp.where(jnp.abs(fhi) <= tol, 0.0, fhi)
+    change = (flo * fhi) < 0.0
+    # orient so that f(a) <= 0 <= f(b)
+    up = flo <= fhi
+    a = jnp.where(up, lo, hi)
+    b = jnp.where(up, hi, lo)
+    fa, fb = jnp.minimum(flo, fhi), jnp.maximum(flo, fhi)
+    den = fb - fa
+    x = jnp.where(den > 0, a - fa * (b - a) / jnp.where(den > 0, den, 1.0), 0.5 * (a + b))
+    last = jnp.abs(b - a)
+    for _ in range(NEWTON_STEPS if steps is None else steps):
+        fx = poly_eval(c, x)
+        a = jnp.where(fx <= 0.0, x, a)
+        b = jnp.where(fx > 0.0, x, b)
+        dfx = poly_eval(dc, x)
+        step, ok = _safe_div(fx, dfx)
+        xn = x - step
+        # rtsafe: bisect when Newton leaves the bracket or does not halve its last step
+        small = jnp.abs(step) <= 1e-12 * jnp.abs(hi - lo)  # converged: stay
+        good = ok & ((xn - a) * (xn - b) <= 0.0) & ((2.0 * jnp.abs(step) <= last) | small)
+        x_new = jnp.where(good, xn, 0.5 * (a + b))
+        last = jnp.abs(x_new - x)
+        x = x_new
+    eps = CERTIFICATE * jnp.abs(hi - lo)
+    left = jnp.clip(x - eps, lo, hi)
+    right = jnp.clip(x + eps, lo, hi)
+    tight = poly_eval(c, left) * poly_eval(c, right) <= 0.0
+    width = jnp.where(tight, right - left, jnp.abs(b - a))
+    fallback = jnp.where(jnp.abs(flo) <= jnp.abs(fhi), lo, hi)
+    return jnp.where(change, x, fallback), jnp.where(change, width, 0.0)
+
+
+def roots_in_brackets(c, edges):
+    """Roots of c, one per bracket ``[edges[i], edges[i+1]]`` on which c is monotone.
+
+    c: (..., n); edges: (..., k+1) sorted → roots (..., k) and their certified widths.
+    """
+    dc = poly_derivative(c)
+    lo, hi = edges[..., :-1], edges[..., 1:]
+    return bracketed_root(c[..., None, :], dc[..., None, :], lo, hi)
+
+
+def chain_extrema(c, h):
+    """Critical times of a quintic's value, velocity and acceleration on ``[0, h]``.
+
+    c: (..., 6) power-series coefficients in τ ∈ [0, h]; h: (...). Returns
+    ``((travel_times (..., 6), widths), (velocity_times (..., 5), widths),
+    acceleration_times (..., 4))``: the ends and the roots of the first, second and third
+    derivative respectively (the last in closed form), each root within its width of the
+    true one.
+    """
+    zero = jnp.zeros_like(h)
+    v = poly_derivative(c)
+    a = poly_derivative(v)
+    j = poly_derivative(a)
+    jr = quadratic_roots(j, zero, h)  # (..., 2)
+    ends_lo, ends_hi = zero[..., None], h[..., None]
+    a_edges = jnp.concatenate([ends_lo, jr, ends_hi], axis=-1)  # (..., 4)
+    ar, aw = roots_in_brackets(a, a_edges)  # (..., 3), ordered
+    v_edges = jnp.concatenate([ends_lo, ar, ends_hi], axis=-1)  # (..., 5)
+    vr, vw = roots_in_brackets(v, v_edges)  # (..., 4)
+    t_edges = jnp.concatenate([ends_lo, vr, ends_hi], axis=-1)  # (..., 6)
+    pad = jnp.zeros_like(ends_lo)
+    return (
+        (t_edges, jnp.concatenate([pad, vw, pad], -1)),
+        (v_edges, jnp.concatenate([pad, aw, pad], -1)),
+        a_edges,
+    )
+
+
+def _at(c, t):
+    """Power series c (..., n) at times t (..., m) → (..., m)."""
+    return poly_eval(c[..., None, :], t)
+
+
+def span_maxima(c, h):
+    """Maxima of ``|c|``, ``|c'|``, ``|c''|`` of a quintic on ``[0, h]``, never understated.
+
+    c: (..., 6), h: (...) → maxima (..., 3) and the critical times of :func:`chain_extrema`.
+    At a root x of ``Q'`` certified within width w, ``|Q| <= |Q(x)| + |Q'(x)| w + M w²/2``
+    with M the maximum of ``|Q''|`` on the span (exact: the acceleration's maximum for the
+    value, the jerk's for the velocity), so rounding or slow convergence can only overstate.
+    """
+    times = chain_extrema(c, h)
+    (tt, tw), (vt, vw), at = times
+    d = [c] + [poly_derivative(c, k) for k in range(1, 4)]
+    amax = jnp.max(jnp.abs(_at(d[2], at)), -1)
+    jpeak, _ = _safe_div(-d[3][..., 1], 2.0 * d[3][..., 2])  # vertex of the quadratic jerk
+    jt = jnp.stack([jnp.zeros_like(h), h, jnp.clip(jpeak, 0.0, h)], -1)
+    jmax = jnp.max(jnp.abs(_at(d[3], jt)), -1)
+    vmax = jnp.max(
+        jnp.abs(_at(d[1], vt)) + jnp.abs(_at(d[2], vt)) * vw + 0.5 * jmax[..., None] * vw * vw, -1
+    )
+    pmax = jnp.max(
+        jnp.abs(_at(d[0], tt)) + jnp.abs(_at(d[1], tt)) * tw + 0.5 * amax[..., None] * tw * tw, -1
+    )
+    return jnp.stack([pmax, vmax, amax], -1), times

@@ -1,0 +1,473 @@
+"""The docking problem: decision vector → trajectory → objectives and limits (SPEC §3–6).
+
+``DockingProblem(...).evaluate(X)`` scores a whole population in one jitted, vmapped call:
+
+* ``F[:, 0] = T = Σ h_k`` (Eq. 24);
+* ``F[:, 1] = Σ_j sqrt((1/T) ∫_0^T q_j'''(t)² dt)`` over the eight joints (Eq. 25): the
+  integrand is exactly polynomial for the joints linear in the pose, and smooth for the
+  right arm's axial, lift and lateral joints (through sin/cos of pitch and yaw); both are
+  integrated by Gauss–Legendre per knot span (8 nodes by default: exact for the former,
+  accurate far below 1e-9 relative for the latter);
+* ``G[:, 3j + k] = max_t |quantity_k(t)| / limit_k − 1`` for joint j and quantity
+  k ∈ (travel about home, velocity, acceleration) (SPEC §6). The maxima are exact: for the
+  joints linear in the pose they sit at span ends or at roots of the next derivative,
+  found by the derivative chain of :mod:`dockjax.extrema`; for the right arm's nonlinear
+  joints the roots of the first-order expansion (in pitch and yaw about the span's middle)
+  are polished by one Newton step on the true joint function and the true value is taken.
+  A safety margin of ``1e-9`` is added, so a column is never understated.
+
+The computation runs in float64 inside ``jax.enable_x64`` (no global flag is flipped), and
+the problem is a JAX pytree, so one compiled kernel serves every start, goal and limit of
+the same shape.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import bspline, config, extrema, jets
+from .kinematics import inverse_kinematics
+
+__all__ = ["DockingProblem", "score", "score_batch"]
+
+_DEG = math.pi / 180.0
+G_SAFETY = 1e-9
+"""Added to every constraint column so that rounding never understates it (SPEC §6)."""
+GAUSS_NODES = 8
+"""Gauss–Legendre nodes per knot span for the jerk integral (SPEC §5)."""
+
+
+def _vector(name: str, value, lengths: Sequence[int], positive: bool = False) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim != 1 or arr.shape[0] not in lengths:
+        want = " or ".join(str(n) for n in lengths)
+        raise ValueError(f"{name} must have {want} numbers, got {np.asarray(value).tolist()!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {arr.tolist()!r}")
+    if positive and np.any(arr <= 0):
+        raise ValueError(f"{name} must be > 0, got {arr.tolist()!r}")
+    return arr
+
+
+def _per_joint(name: str, value) -> np.ndarray:
+    arr = _vector(name, value, (4, 8), positive=True)
+    return np.tile(arr, 2) if arr.shape[0] == 4 else arr
+
+
+class DockingProblem:
+    """The paper's trajectory-planning problem as a batched scoring kernel.
+
+    Keyword arguments (SPEC defaults in :mod:`dockjax.config`; mm, s, degrees):
+
+    * ``start``, ``goal``: poses ``[x, y, z, pitch, yaw, roll]`` (6,).
+    * ``arm_distance``: ``D_2``, distance between the arm ends (mm).
+    * ``interval_bounds``: ``(lo, hi)`` of each knot interval ``h_k`` (s), ``0 < lo < hi``.
+    * ``travel``, ``velocity``, ``acceleration``: limits of Table 2, 4 numbers in the arm
+      joint order (axial, lift, lateral, roll), applied to both arms, or 8 numbers in the
+      joint order ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``.
+    * ``home``: (8,) joint home positions for the travel limits; default the midpoint of
+      each joint's start and goal values.
+    * ``margin``: relative margin of the control-point box (SPEC §3).
+    * ``reduced``: if true, only the six intervals are free and ``d_3..d_7`` lie evenly
+      spaced on the segment from start to goal (SPEC §3); ``n_var`` is then 6.
+    * ``right_arm``: how the limits of the right arm's nonlinear joints are found:
+      ``"bound"`` — exact extrema of the first-order expansion in pitch and yaw plus a
+      rigorous bound of the remainder (fast; never understated; overstated by twice the
+      bound, far below 0.01 when pitch and yaw move by tenths of a degree, as in the
+      paper); ``"exact"`` — the true joint at the polished roots (slower; for large
+      attitude changes); ``"auto"`` (default) picks ``"bound"`` when its worst-case
+      overstatement over the decision box (a crude hull estimate) is below 0.01, else
+      ``"exact"``.
+
+    Attributes: ``n_var``, ``n_obj`` (2), ``n_con`` (24), ``lower``, ``upper`` (natural
+    units, SPEC §3 order), ``limits`` (8, 3), ``home`` (8,), ``start``, ``goal``.
+    """
+
+    n_obj = 2
+    n_con = config.N_CON
+
+    def __init__(
+        self,
+        *,
+        start: Sequence[float] = config.START,
+        goal: Sequence[float] = config.GOAL,
+        arm_distance: float = config.ARM_DISTANCE,
+        interval_bounds: tuple[float, float] = config.INTERVAL_BOUNDS,
+        travel: Sequence[float] = config.TRAVEL,
+        velocity: Sequence[float] = config.VELOCITY,
+        acceleration: Sequence[float] = config.ACCELERATION,
+        home: Sequence[float] | None = None,
+        margin: float = config.MARGIN,
+        reduced: bool = False,
+        right_arm: str = "auto",
+    ):
+        start_a = _vector("start", start, (6,))
+        goal_a = _vector("goal", goal, (6,))
+        d2 = _vector("arm_distance", [arm_distance], (1,), positive=True)[0]
+        bounds = _vector("interval_bounds", interval_bounds, (2,))
+        lo, hi = bounds
+        if lo <= 0 or lo >= hi:
+            raise ValueError(f"interval_bounds must satisfy 0 < lo < hi, got ({lo}, {hi})")
+        mg = _vector("margin", [margin], (1,))[0]
+        if mg < 0:
+            raise ValueError(f"margin must be >= 0, got {mg}")
+        limits = np.stack(
+            [_per_joint("travel", travel), _per_joint("velocity", velocity),
+             _per_joint("acceleration", acceleration)],
+            axis=1,
+        )
+        with jax.enable_x64(True):
+            q0 = np.asarray(inverse_kinematics(start_a, d2))
+            q1 = np.asarray(inverse_kinematics(goal_a, d2))
+        home_a = 0.5 * (q0 + q1) if home is None else _vector("home", home, (8,))
+        for j, name in enumerate(config.JOINT_NAMES):
+            move = abs(q1[j] - q0[j])
+            if move > 2 * limits[j, 0]:
+                raise ValueError(
+                    f"start-to-goal move of joint {name} is {move:.6g} {config.JOINT_UNITS[j]}, "
+                    f"longer than its stroke 2 x travel = {2 * limits[j, 0]:.6g}"
+                )
+            for label, q in (("start", q0[j]), ("goal", q1[j])):
+                if abs(q - home_a[j]) > limits[j, 0] * (1 + 1e-12):
+                    raise ValueError(
+                        f"{label} value {q:.6g} of joint {name} is outside its travel "
+                        f"{home_a[j]:.6g} ± {limits[j, 0]:.6g} about home"
+                    )
+        delta = goal_a - start_a
+        zero_margin = np.asarray(config.ZERO_MOVE_MARGIN)
+        m = np.where(delta == 0, zero_margin, mg * np.abs(delta))
+        box_lo = np.minimum(start_a, goal_a) - m
+        box_hi = np.maximum(start_a, goal_a) + m
+        h_lo, h_hi = np.full(6, lo), np.full(6, hi)
+        if reduced:
+            lower, upper = h_lo, h_hi
+        else:
+            lower = np.concatenate([h_lo, np.tile(box_lo, config.N_FREE)])
+            upper = np.concatenate([h_hi, np.tile(box_hi, config.N_FREE)])
+        self.start, self.goal, self.arm_distance = start_a, goal_a, float(d2)
+        self.interval_bounds = (float(lo), float(hi))
+        self.limits, self.home = limits, home_a
+        self.lower, self.upper = lower, upper
+        self.margin, self.reduced = float(mg), bool(reduced)
+        if right_arm not in ("auto", "bound", "exact"):
+            raise ValueError(f"right_arm must be 'auto', 'bound' or 'exact', got {right_arm!r}")
+        if right_arm == "auto":
+            right_arm = "bound" if self._bound_overstatement() <= 1e-2 else "exact"
+        self.exact_right_arm = right_arm == "exact"
+
+    # -- pytree -------------------------------------------------------------------------
+    _LEAVES = ("start", "goal", "arm_distance", "limits", "home", "lower", "upper")
+    _META = ("interval_bounds", "margin", "reduced", "exact_right_arm")
+
+    def _tree_flatten(self):
+        return tuple(getattr(self, k) for k in self._LEAVES), tuple(
+            getattr(self, k) for k in self._META
+        )
+
+    @classmethod
+    def _tree_unflatten(cls, meta, leaves):
+        obj = object.__new__(cls)
+        for k, v in zip(cls._LEAVES, leaves):
+            object.__setattr__(obj, k, v)
+        for k, v in zip(cls._META, meta):
+            object.__setattr__(obj, k, v)
+        return obj
+
+    def _bound_overstatement(self) -> float:
+        """Worst-case overstatement (in units of the limit) of the ``"bound"`` treatment of
+        the right arm over the decision box, from hull bounds of pitch and yaw and their
+        derivatives (``|α'| <= 5 Δ/h_lo``, ``|α''| <= 40 Δ/h_lo²``)."""
+        lo, hi = self.lower, self.upper
+        if self.reduced:
+            box = np.stack([np.minimum(self.start, self.goal), np.maximum(self.start, self.goal)])
+        else:
+            box = np.stack([lo[6:12], hi[6:12]])
+            box = np.stack([np.minimum(box[0], self.start), np.maximum(box[1], self.start)])
+        rng = _DEG * (box[1, 3:5] - box[0, 3:5])
+        far = np.minimum(1.0, _DEG * np.max(np.abs(box[:, 3:5]), axis=0))
+        h_lo = self.interval_bounds[0]
+        with jax.enable_x64(True):
+            hess = np.asarray(_hessian_norms(far[0], far[1]))
+            b = np.asarray(
+                _remainder_bound(
+                    self.arm_distance, hess, np.hypot(*rng), 5 * np.hypot(*rng) / h_lo,
+                    40 * np.hypot(*rng) / h_lo**2,
+                )
+            )
+        return float(np.max(2 * b / self.limits[4:7]))
+
+    # -- public API ---------------------------------------------------------------------
+    @property
+    def n_var(self) -> int:
+        return config.N_INTERVALS if self.reduced else config.N_VAR
+
+    def __repr__(self) -> str:
+        f = lambda a: "(" + ", ".join(f"{v:g}" for v in np.ravel(a)) + ")"  # noqa: E731
+        return (
+            f"DockingProblem(start={f(self.start)}, goal={f(self.goal)}, "
+            f"arm_distance={self.arm_distance:g}, interval_bounds={self.interval_bounds}, "
+            f"n_var={self.n_var}{', reduced' if self.reduced else ''})"
+        )
+
+    def check_population(self, X) -> np.ndarray:
+        """Validate a population: (n, n_var) finite numbers → float64 array. Not clipped."""
+        arr = np.asarray(X, dtype=np.float64)
+        if arr.ndim != 2 or arr.shape[1] != self.n_var:
+            raise ValueError(f"X must have shape (n, {self.n_var}), got {np.shape(X)}")
+        if not np.all(np.isfinite(arr)):
+            bad = np.argwhere(~np.isfinite(arr))[0]
+            raise ValueError(
+                f"X must be finite, got {arr[tuple(bad)]} at row {bad[0]}, column {bad[1]}"
+            )
+        if np.any(arr[:, : config.N_INTERVALS] <= 0):
+            bad = np.argwhere(arr[:, : config.N_INTERVALS] <= 0)[0]
+            raise ValueError(
+                f"X intervals h_k must be > 0, got {arr[tuple(bad)]} at row {bad[0]}, column {bad[1]}"
+            )
+        return arr
+
+    def evaluate(self, X, *, precision: str = "float64") -> tuple[np.ndarray, np.ndarray]:
+        """Score a population in one compiled call.
+
+        X: (n, n_var) decision vectors in natural units (SPEC §3 order; not clipped).
+        Returns ``F`` (n, 2) ``[T, jerk]`` and ``G`` (n, 24) as float64 NumPy arrays.
+        ``precision="float32"`` runs the same kernel in single precision (faster, about
+        1e-5 relative; for screening only).
+        """
+        arr = self.check_population(X)
+        if precision == "float64":
+            with jax.enable_x64(True):
+                F, G = _evaluate_batch(self, jnp.asarray(arr))
+                return np.asarray(F), np.asarray(G)
+        if precision == "float32":
+            F, G = _evaluate_batch(self, jnp.asarray(arr, jnp.float32))
+            return np.asarray(F, np.float64), np.asarray(G, np.float64)
+        raise ValueError(f"precision must be 'float64' or 'float32', got {precision!r}")
+
+    def evaluate_jax(self, X):
+        """Traceable batch scoring for use inside jit/vmap (the caller sets the precision).
+        X: (n, n_var) → F (n, 2), G (n, 24)."""
+        return score_batch(self, X)
+
+    def decode(self, x):
+        """The trajectory of one decision vector (n_var,). See :class:`dockjax.Trajectory`."""
+        from .trajectory import Trajectory
+
+        arr = self.check_population(np.asarray(x, dtype=np.float64)[None, :])[0]
+        return Trajectory(self, arr)
+
+
+jax.tree_util.register_pytree_node(
+    DockingProblem, DockingProblem._tree_flatten, DockingProblem._tree_unflatten
+)
+
+
+# -- the kernel ----------------------------------------------------------------------------
+
+
+def decode(problem: DockingProblem, x):
+    """Intervals, knots and span coefficients of one candidate.
+
+    x: (n_var,) → ``h`` (6,), ``u`` (17,), ``c`` (6 spans, 6 powers, 6 pose coordinates).
+    """
+    h = x[: config.N_INTERVALS]
+    if problem.reduced:
+        interior = bspline.line_control_points(problem.start, problem.goal).astype(x.dtype)
+    else:
+        interior = x[config.N_INTERVALS :].reshape(config.N_FREE, config.N_POSE)
+    u = bspline.knots(h)
+    ctrl = bspline.control_points(problem.start, problem.goal, interior)
+    # Materialise: stops XLA from re-fusing (and so recomputing) the conversion into
+    # every broadcasting consumer downstream.
+    return jax.lax.optimization_barrier((h, u, bspline.span_coefficients(ctrl, u)))
+
+
+_RIGHT_COORDS = ((2, 3, 4), (1, 3), (0, 3, 4))
+"""Pose coordinates (x=0, y=1, z=2, α=3, β=4) each right-arm joint depends on."""
+
+
+def span_angles(c, h):
+    """Pitch and yaw (°) at the middle of each span with their sines and cosines.
+
+    c: (6, 6, 6), h: (6,) → (mid (6, 2), sin (6, 2), cos (6, 2)): the reference angles of
+    the expansions used for the right arm (one trig call per span and angle).
+    """
+    mid = bspline.poly_eval(jnp.swapaxes(c[..., 3:5], 1, 2), 0.5 * h[:, None])  # (6, 2)
+    return mid, jnp.sin(_DEG * mid), jnp.cos(_DEG * mid)
+
+
+def right_jets(problem: DockingProblem, c, tau, order: int, joints, ref):
+    """Jets of the right arm's axial, lift and lateral joints (SPEC §4).
+
+    c: (6, 6 powers, 6 coords) span coefficients; tau: (6, m) local times per span; ref:
+    :func:`span_angles`. Returns (6, m, len(joints), order + 1): normalised Taylor
+    coefficients of (0) ``d_R1 = z + D_2 cos α cos β``, (1) ``d_R2 = y + D_2 sin α`` and (2)
+    ``d_R3 = −(x + D_2 cos α sin β)``, for the requested (static) joints.
+    """
+    coords = sorted(set().union(*(_RIGHT_COORDS[j] for j in joints)))
+    pose = {i: bspline.poly_taylor(c[:, None, :, i], tau, order) for i in coords}
+    mid, sin_m, cos_m = ref
+    trig = {}
+    for i in (3, 4):
+        if i in pose:
+            s0, c0 = jets.sin_cos_near(
+                _DEG * (pose[i][..., 0] - mid[:, i - 3, None]), sin_m[:, i - 3, None], cos_m[:, i - 3, None]
+            )
+            trig[i] = jets.sin_cos(_DEG * pose[i], s0, c0)
+    d2 = problem.arm_distance
+    make = (
+        lambda: pose[2] + d2 * jets.mul(trig[3][1], trig[4][1]),
+        lambda: pose[1] + d2 * trig[3][0],
+        lambda: -(pose[0] + d2 * jets.mul(trig[3][1], trig[4][0])),
+    )
+    return jnp.stack([make[j]() for j in joints], axis=-2)
+
+
+def _joint_polys(problem: DockingProblem, c, h, ref):
+    """Power series of the eight joints on each span, minus home; the right arm's axial,
+    lift and lateral joints linearised in pitch and yaw about the span's middle.
+    c: (6, 6, 6), h: (6,) → (6 spans, 8 joints, 6 powers)."""
+    x, y, z, a, b, g = (c[:, :, i] for i in range(6))
+    mid, sin_m, cos_m = ref
+    am, bm = mid[:, 0:1], mid[:, 1:2]
+    sa, ca, sb, cb = sin_m[:, 0:1], cos_m[:, 0:1], sin_m[:, 1:2], cos_m[:, 1:2]
+    e0 = jnp.zeros(6, c.dtype).at[0].set(1.0)
+    da = _DEG * (a - am * e0)
+    db = _DEG * (b - bm * e0)
+    d2 = problem.arm_distance
+    r1 = z + d2 * (ca * cb * e0 - sa * cb * da - ca * sb * db)
+    r2 = y + d2 * (sa * e0 + ca * da)
+    r3 = -(x + d2 * (ca * sb * e0 - sa * sb * da + ca * cb * db))
+    polys = jnp.stack([-z, y, -x, g, r1, r2, r3, -g], axis=1)
+    return polys - problem.home[None, :, None] * e0
+
+
+def _maxima(problem: DockingProblem, c, h, ref):
+    """``max_t |q_j − home_j|``, ``max |q_j'|``, ``max |q_j''|`` per joint. → (8, 3)."""
+    polys = jax.lax.optimization_barrier(_joint_polys(problem, c, h, ref))
+    hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
+    spans, times = extrema.span_maxima(polys, hh)
+    lin = jnp.max(spans, axis=0)  # (8, 3)
+    if problem.exact_right_arm:
+        right = _right_polished(problem, c, h, ref, times)
+    else:
+        right = lin[4:7] + _right_remainder_bounds(problem, c, h, ref).max(axis=0)
+    return lin.at[4:7].set(right)
+
+
+def _hessian_norms(sin_a, sin_b):
+    """Bounds of the Hessian norms of ``cos a cos b``, ``sin a``, ``cos a sin b`` given
+    bounds of ``|sin a|`` and ``|sin b|`` (their eigenvalues are ``−cos(a ± b)``,
+    ``−sin a`` and ``−cos a sin b ± sin a cos b``)."""
+    one = jnp.ones_like(sin_a)
+    return jnp.stack([one, sin_a, jnp.minimum(one, sin_a + sin_b)], axis=-1)
+
+
+def _remainder_bound(d2, hess, delta, vel, acc):
+    """``D_2 ×`` bounds of the remainder of the first-order expansion and its first two
+    time derivatives: ``½Hδ²``, ``HδV``, ``H(δA + V²)`` (mean-value theorem). (..., 3 joints, 3)."""
+    h = hess
+    return d2 * jnp.stack(
+        [0.5 * h * delta[..., None] ** 2, h * (delta * vel)[..., None],
+         h * (delta * acc + vel * vel)[..., None]],
+        axis=-1,
+    )
+
+
+def _right_remainder_bounds(problem: DockingProblem, c, h, ref):
+    """Rigorous bounds, per span, of how far the right arm's axial, lift and lateral joints
+    (and their first two derivatives) can be from their first-order expansion in pitch
+    and yaw about the span's middle. → (6 spans, 3 joints, 3 quantities), mm.
+
+    From the series of α and β re-centred at the span's middle,
+    ``|α(t) − α_m| <= Σ_{m>=1} |a_m| (h/2)^m`` and likewise for the derivatives.
+    """
+    mid, sin_m, _ = ref
+    half = 0.5 * h[:, None]
+    ang = _DEG * bspline.poly_taylor(jnp.swapaxes(c[:, :, 3:5], 1, 2), half)  # (6, 2, 6)
+    m = np.arange(6)
+    powers = half[..., None] ** np.maximum(m - 1, 0)  # (6, 1, 6)
+    dev = jnp.sum(jnp.abs(ang[..., 1:]) * half[..., None] ** m[1:], -1)  # (6, 2)
+    vel = jnp.sum(jnp.abs(ang[..., 1:]) * m[1:] * powers[..., 1:], -1)
+    acc = jnp.sum(jnp.abs(ang[..., 2:]) * (m[2:] * (m[2:] - 1)) * half[..., None] ** (m[2:] - 2), -1)
+    norm = lambda v: jnp.sqrt(jnp.sum(v * v, -1))  # noqa: E731
+    sin_bound = jnp.minimum(1.0, jnp.abs(sin_m) + dev)  # (6, 2)
+    hess = _hessian_norms(sin_bound[:, 0], sin_bound[:, 1])  # (6, 3)
+    return _remainder_bound(problem.arm_distance, hess, norm(dev), norm(vel), norm(acc))
+
+
+def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 2):
+    """Right arm's nonlinear joints, for large attitude changes: from the roots of the
+    linearised joint, ``newton`` Newton steps on the true joint's derivative, then the true
+    value plus twice the last Newton correction ``Q'²/|Q''|`` (quadratic convergence makes
+    it an overstatement of the remaining error), and the span ends. → (3 joints, 3)."""
+    inner = jnp.concatenate([times[0][0][:, 4:7, 1:5], times[1][0][:, 4:7, 1:4], times[2][:, 4:7, 1:3]], -1)
+    kind = np.array([0] * 4 + [1] * 3 + [2] * 2)
+    ends = jnp.stack([jnp.zeros_like(h), h], -1)  # (6, 2)
+    right = []
+    for r in range(3):
+        jet_at = lambda t: jets.derivatives(right_jets(problem, c, t, 4, (r,), ref)[..., 0, :])  # noqa: E731
+        pick = lambda d, i: jnp.stack([d[:, j, k + i] for j, k in enumerate(kind)], -1)  # noqa: E731
+        pts = inner[:, r]  # (6, 9)
+        d = jet_at(pts)
+        first = pick(d, 0)
+        for _ in range(newton):
+            q1, q2 = pick(d, 1), pick(d, 2)
+            pts = jnp.clip(pts - jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0), 0.0, h[:, None])
+            d = jet_at(pts)
+        q0, q1, q2 = pick(d, 0), pick(d, 1), pick(d, 2)
+        step = jnp.abs(jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0))
+        extra = jnp.where(step <= 1e-4 * h[:, None], jnp.abs(q1) * step, 0.0)
+        end = jets.derivatives(right_jets(problem, c, ends, 2, (r,), ref)[..., 0, :])  # (6, 2, 3)
+        shift = jnp.where(kind == 0, problem.home[4 + r], 0.0)
+        cols = []
+        for k in range(3):
+            sel = kind == k
+            vals = jnp.concatenate(
+                [jnp.abs(first[:, sel] - shift[sel]), jnp.abs(q0[:, sel] - shift[sel]) + extra[:, sel],
+                 jnp.abs(end[..., k] - (problem.home[4 + r] if k == 0 else 0.0))], 1)
+            cols.append(vals.max())
+        right.append(jnp.stack(cols))
+    return jnp.stack(right)
+
+
+def _jerk(problem: DockingProblem, c, h, ref):
+    """Sum over the eight joints of the RMS jerk (Eq. 25) by Gauss–Legendre per span."""
+    xi, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
+    tau = 0.5 * h[:, None] * (1.0 + jnp.asarray(xi, c.dtype))  # (6, n)
+    weights = 0.5 * h[:, None] * jnp.asarray(w, c.dtype)
+    cj = bspline.poly_derivative(jnp.swapaxes(c, 1, 2), 3)  # (6, 6 coords, 3)
+    pj = bspline.poly_eval(cj[:, None], tau[..., None])  # (6, n, 6)
+    rj = right_jets(problem, c, tau, 3, (0, 1, 2), ref)[..., 3] * 6.0  # (6, n, 3)
+    jerk = jnp.concatenate([-pj[..., 2:3], pj[..., 1:2], -pj[..., 0:1], pj[..., 5:6], rj, -pj[..., 5:6]], -1)
+    T = jnp.sum(h)
+    ms = jnp.einsum("kn,knj->j", weights, jerk * jerk) / T
+    return jnp.sum(jnp.sqrt(ms))
+
+
+def score(problem: DockingProblem, x):
+    """Objectives and constraint values of one candidate. x: (n_var,) → F (2,), G (24,)."""
+    h, u, c = decode(problem, x)
+    T = jnp.sum(h)
+    ref = jax.lax.optimization_barrier(span_angles(c, h))
+    F = jnp.stack([T, _jerk(problem, c, h, ref)])
+    G = (_maxima(problem, c, h, ref) / problem.limits - 1.0 + G_SAFETY).reshape(-1)
+    return F, G
+
+
+def score_batch(problem: DockingProblem, X):
+    """Traceable batch scoring: X (n, n_var) → F (n, 2), G (n, 24).
+
+    The candidates are mapped along the last axis inside (``X.T``): XLA then streams every
+    elementwise step over contiguous candidates, about 1.3× faster than along the first.
+    """
+    F, G = jax.vmap(score, in_axes=(None, 1), out_axes=1)(problem, X.T)
+    return F.T, G.T
+
+
+_evaluate_batch = jax.jit(score_batch)

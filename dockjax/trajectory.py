@@ -1,0 +1,156 @@
+"""One decoded trajectory: pose and joints with their derivatives at any times, and CSV export.
+
+A :class:`Trajectory` is what :meth:`DockingProblem.decode` returns for one decision vector.
+The pose follows the quintic B-spline of SPEC §2 (exactly, through its per-span power
+series); the joints follow SPEC §4 (the right arm's axial, lift and lateral joints by
+Taylor-mode arithmetic, :mod:`dockjax.jets`).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import bspline, config, jets
+from .problem import _DEG, DockingProblem, decode
+
+__all__ = ["Trajectory", "atomic_write_text"]
+
+_SUFFIX = ("", "_vel", "_acc", "_jerk")
+_UNIT_POWER = ("", "/s", "/s^2", "/s^3")
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write a text file atomically: a temporary file in the same folder, then a rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+@jax.jit
+def _jets_at(problem: DockingProblem, x, t):
+    """Pose jets (m, 6, 4) and joint jets (m, 8, 4) at times t (m,), orders 0..3."""
+    h, u, c = decode(problem, x)
+    inner = u[bspline.DEGREE + 1 : bspline.DEGREE + bspline.N_SPANS]
+    k = jnp.searchsorted(inner, t, side="right")
+    tau = t - u[bspline.DEGREE + k]
+    pose = bspline.poly_taylor(jnp.swapaxes(c[k], 1, 2), tau[:, None], 3)  # (m, 6, 4)
+    px, py, pz, pa, pb, pg = (pose[:, i] for i in range(6))
+    sa, ca = jets.sin_cos(_DEG * pa)
+    sb, cb = jets.sin_cos(_DEG * pb)
+    d2 = problem.arm_distance
+    joints = jnp.stack(
+        [-pz, py, -px, pg, pz + d2 * jets.mul(ca, cb), py + d2 * sa,
+         -(px + d2 * jets.mul(ca, sb)), -pg],
+        axis=1,
+    )
+    return jets.derivatives(pose), jets.derivatives(joints)
+
+
+class Trajectory:
+    """The trajectory of one candidate (use :meth:`DockingProblem.decode`).
+
+    Attributes: ``x`` (n_var,), ``T`` (s), ``intervals`` (6,), ``knots`` (17,),
+    ``control_points`` (11, 6), ``problem``.
+    """
+
+    def __init__(self, problem: DockingProblem, x: np.ndarray):
+        self.problem = problem
+        self.x = np.asarray(x, dtype=np.float64)
+        self.intervals = self.x[: config.N_INTERVALS].copy()
+        self.T = float(np.sum(self.intervals))
+        self.knots = np.concatenate(
+            [np.zeros(6), np.cumsum(self.intervals)[:-1], np.full(6, self.T)]
+        )
+        if problem.reduced:
+            with jax.enable_x64(True):
+                interior = np.asarray(bspline.line_control_points(problem.start, problem.goal))
+        else:
+            interior = self.x[config.N_INTERVALS :].reshape(config.N_FREE, config.N_POSE)
+        self.control_points = np.concatenate(
+            [np.tile(problem.start, (3, 1)), interior, np.tile(problem.goal, (3, 1))]
+        )
+
+    def __repr__(self) -> str:
+        return f"Trajectory(T={self.T:.6g} s, intervals={np.round(self.intervals, 6).tolist()})"
+
+    def _times(self, t) -> np.ndarray:
+        arr = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if arr.ndim != 1:
+            raise ValueError(f"t must be a scalar or 1-D array of times, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError("t must be finite")
+        tol = 1e-9 * max(1.0, self.T)
+        if np.any(arr < -tol) or np.any(arr > self.T + tol):
+            raise ValueError(f"t must lie in [0, T] = [0, {self.T:.9g}] s, got [{arr.min()}, {arr.max()}]")
+        return np.clip(arr, 0.0, self.T)
+
+    def _eval(self, t, derivative: int):
+        if derivative not in (0, 1, 2, 3):
+            raise ValueError(f"derivative must be 0, 1, 2 or 3, got {derivative!r}")
+        tt = self._times(t)
+        with jax.enable_x64(True):
+            pose, joints = _jets_at(self.problem, jnp.asarray(self.x), jnp.asarray(tt))
+            return np.asarray(pose[..., derivative]), np.asarray(joints[..., derivative])
+
+    def pose(self, t, derivative: int = 0) -> np.ndarray:
+        """Pose ``[x, y, z, α, β, γ]`` (or its ``derivative``-th time derivative) at t: (m, 6)."""
+        return self._eval(t, derivative)[0]
+
+    def joints(self, t, derivative: int = 0) -> np.ndarray:
+        """The eight joints (SPEC §4 order) or a time derivative (0..3) at t: (m, 8)."""
+        return self._eval(t, derivative)[1]
+
+    def sample_times(self, rate: float) -> np.ndarray:
+        """Times ``k / rate`` for ``k = 0, 1, …`` up to T, and a last one at exactly T."""
+        rate = float(rate)
+        if not np.isfinite(rate) or rate <= 0:
+            raise ValueError(f"rate must be a positive number of samples per second, got {rate}")
+        n = int(np.floor(self.T * rate + 1e-9))
+        t = np.arange(n + 1) / rate
+        t = t[t < self.T - 1e-12]
+        return np.append(t, self.T)
+
+    def sample(self, rate: float) -> dict[str, np.ndarray]:
+        """Samples at :meth:`sample_times`: ``t`` (m,), ``pose`` (m, 6) and, per joint,
+        ``position``, ``velocity``, ``acceleration``, ``jerk`` (m, 8)."""
+        t = self.sample_times(rate)
+        with jax.enable_x64(True):
+            pose, joints = _jets_at(self.problem, jnp.asarray(self.x), jnp.asarray(t))
+        pose, joints = np.asarray(pose), np.asarray(joints)
+        out = {"t": t, "pose": pose[..., 0]}
+        for k, name in enumerate(("position", "velocity", "acceleration", "jerk")):
+            out[name] = joints[..., k]
+        return out
+
+    def csv_header(self) -> list[str]:
+        cols = ["t [s]"] + [f"{n} [{u}]" for n, u in zip(config.POSE_NAMES, config.POSE_UNITS)]
+        for name, unit in zip(config.JOINT_NAMES, config.JOINT_UNITS):
+            cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(_SUFFIX, _UNIT_POWER)]
+        return cols
+
+    def to_csv(self, path: str | os.PathLike, rate: float) -> Path:
+        """Write time, pose and each joint's position, velocity, acceleration and jerk,
+        sampled at ``rate`` Hz with a last row at exactly T, to ``path`` (atomically)."""
+        s = self.sample(rate)
+        per_joint = np.stack([s["position"], s["velocity"], s["acceleration"], s["jerk"]], -1)
+        table = np.concatenate([s["t"][:, None], s["pose"], per_joint.reshape(len(s["t"]), -1)], 1)
+        lines = [",".join(self.csv_header())]
+        lines += [",".join(f"{v:.17g}" for v in row) for row in table]
+        path = Path(path)
+        atomic_write_text(path, "\n".join(lines) + "\n")
+        return path
