@@ -151,6 +151,8 @@ class DockingProblem:
             upper = np.concatenate([h_hi, np.tile(box_hi, config.N_FREE)])
         self.start, self.goal, self.arm_distance = start_a, goal_a, float(d2)
         self.interval_bounds = (float(lo), float(hi))
+        # traced leaves (not static), so they never cause a recompilation
+        self._bounds_margin = np.array([lo, hi, mg])
         self.limits, self.home = limits, home_a
         self.lower, self.upper = lower, upper
         self.margin, self.reduced = float(mg), bool(reduced)
@@ -161,8 +163,8 @@ class DockingProblem:
         self.exact_right_arm = right_arm == "exact"
 
     # -- pytree -------------------------------------------------------------------------
-    _LEAVES = ("start", "goal", "arm_distance", "limits", "home", "lower", "upper")
-    _META = ("interval_bounds", "margin", "reduced", "exact_right_arm")
+    _LEAVES = ("start", "goal", "arm_distance", "limits", "home", "lower", "upper", "_bounds_margin")
+    _META = ("reduced", "exact_right_arm")
 
     def _tree_flatten(self):
         return tuple(getattr(self, k) for k in self._LEAVES), tuple(
@@ -176,18 +178,21 @@ class DockingProblem:
             object.__setattr__(obj, k, v)
         for k, v in zip(cls._META, meta):
             object.__setattr__(obj, k, v)
+        bm = obj._bounds_margin
+        if isinstance(bm, np.ndarray):
+            object.__setattr__(obj, "interval_bounds", (float(bm[0]), float(bm[1])))
+            object.__setattr__(obj, "margin", float(bm[2]))
         return obj
 
     def _bound_overstatement(self) -> float:
         """Worst-case overstatement (in units of the limit) of the ``"bound"`` treatment of
         the right arm over the decision box, from hull bounds of pitch and yaw and their
         derivatives (``|α'| <= 5 Δ/h_lo``, ``|α''| <= 40 Δ/h_lo²``)."""
-        lo, hi = self.lower, self.upper
-        if self.reduced:
-            box = np.stack([np.minimum(self.start, self.goal), np.maximum(self.start, self.goal)])
-        else:
-            box = np.stack([lo[6:12], hi[6:12]])
-            box = np.stack([np.minimum(box[0], self.start), np.maximum(box[1], self.start)])
+        # the control-point box (SPEC §3), also in the reduced setting, so that both
+        # settings take the same path
+        delta = self.goal - self.start
+        m = np.where(delta == 0, np.asarray(config.ZERO_MOVE_MARGIN), self.margin * np.abs(delta))
+        box = np.stack([np.minimum(self.start, self.goal) - m, np.maximum(self.start, self.goal) + m])
         rng = _DEG * (box[1, 3:5] - box[0, 3:5])
         far = np.minimum(1.0, _DEG * np.max(np.abs(box[:, 3:5]), axis=0))
         h_lo = self.interval_bounds[0]
@@ -401,7 +406,7 @@ def _right_remainder_bounds(problem: DockingProblem, c, h, ref):
     return _remainder_bound(problem.arm_distance, hess, norm(dev), norm(vel), norm(acc))
 
 
-def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 2):
+def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 4):
     """Right arm's nonlinear joints, for large attitude changes: from the roots of the
     linearised joint, ``newton`` Newton steps on the true joint's derivative, then the true
     value plus twice the last Newton correction ``Q'²/|Q''|`` (quadratic convergence makes
@@ -422,7 +427,7 @@ def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 2):
             d = jet_at(pts)
         q0, q1, q2 = pick(d, 0), pick(d, 1), pick(d, 2)
         step = jnp.abs(jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0))
-        extra = jnp.where(step <= 1e-4 * h[:, None], jnp.abs(q1) * step, 0.0)
+        extra = jnp.where(step <= 1e-5 * h[:, None], jnp.abs(q1) * step, 0.0)
         end = jets.derivatives(right_jets(problem, c, ends, 2, (r,), ref)[..., 0, :])  # (6, 2, 3)
         shift = jnp.where(kind == 0, problem.home[4 + r], 0.0)
         cols = []

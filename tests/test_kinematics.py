@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 import pytest
 
@@ -118,7 +119,7 @@ def test_arm_distance_is_constant_along_decoded_trajectory():
     np.testing.assert_allclose(dist, d2, rtol=1e-12)
     # the same through the pose and the kinematics helper
     pose = np.asarray(traj.pose(t))
-    with __import__("jax").enable_x64(True):
+    with jax.enable_x64(True):
         kr2 = np.asarray(K.right_end_point(pose, d2))
     np.testing.assert_allclose(np.linalg.norm(kr2 - pose[:, :3], axis=1), d2, rtol=1e-12)
     np.testing.assert_allclose(kr2, kr, rtol=0, atol=1e-9)

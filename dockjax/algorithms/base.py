@@ -1,0 +1,184 @@
+"""What every optimiser shares: the problem contract, the unit box, the run loop.
+
+Every algorithm is a module with a ``Params`` pytree (hyper-parameters; the population size
+is a static field, since it fixes shapes), a ``State`` pytree, and two pure functions in the
+style of optax/evosax::
+
+    init(key, problem, params) -> State
+    step(state, problem, params) -> State
+
+``run(algorithm, key, problem, params, n_iter)`` drives ``step`` with ``lax.scan``; it jits,
+and ``jax.vmap`` over keys or over ``Params`` leaves (ρ, α_max, …) runs many runs in one
+compiled call. All algorithms search in the unit box (SPEC §7) and evaluate exactly
+``pop_size`` new candidates per iteration (equal budgets).
+
+A *problem* is any object with ``n_var``, ``n_obj``, ``n_con``, ``lower``, ``upper``
+(NumPy, natural units) and ``evaluate_jax(X) -> (F, G)`` (traceable; ``G`` may have 0
+columns); :class:`dockjax.DockingProblem` and :class:`ZDT1` are such problems. It is passed
+to ``jit`` as a pytree (its arrays are traced, its shape information static).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from types import ModuleType
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import pareto
+
+__all__ = [
+    "pytree_dataclass",
+    "static",
+    "Population",
+    "evaluate_unit",
+    "to_natural",
+    "validate_common",
+    "ZDT1",
+    "hypervolume_2d",
+]
+
+
+def pytree_dataclass(cls):
+    """A frozen dataclass registered as a JAX pytree (fields marked :func:`static` are aux data)."""
+    return jax.tree_util.register_dataclass(dataclass(frozen=True)(cls))
+
+
+def static(default: Any) -> Any:
+    """A static (non-traced) pytree dataclass field, e.g. the population size."""
+    return field(default=default, metadata=dict(static=True))
+
+
+@pytree_dataclass
+class Population:
+    """Candidates in the unit box and their scores. U: (n, d); F: (n, m); G: (n, c); cv: (n,)."""
+
+    U: jax.Array
+    F: jax.Array
+    G: jax.Array
+    cv: jax.Array
+
+
+def to_natural(problem, U):
+    """Unit box → natural units: ``lower + U (upper − lower)``."""
+    lo = jnp.asarray(problem.lower, U.dtype)
+    hi = jnp.asarray(problem.upper, U.dtype)
+    return lo + U * (hi - lo)
+
+
+def evaluate_unit(problem, U) -> Population:
+    """Score unit-box candidates U (n, d) with the problem's traceable kernel."""
+    F, G = problem.evaluate_jax(to_natural(problem, U))
+    cv = pareto.total_violation(G) if G.shape[-1] else jnp.zeros(U.shape[0], U.dtype)
+    return Population(U=U, F=F, G=G, cv=cv)
+
+
+def validate_common(pop_size: int, n_iter: int | None = None) -> None:
+    """Checks shared by every algorithm, raised before any compilation."""
+    if not isinstance(pop_size, (int, np.integer)) or isinstance(pop_size, bool) or pop_size < 4:
+        raise ValueError(f"pop_size must be an integer >= 4, got {pop_size!r}")
+    if n_iter is not None and (
+        not isinstance(n_iter, (int, np.integer)) or isinstance(n_iter, bool) or n_iter < 1
+    ):
+        raise ValueError(f"n_iter must be an integer >= 1, got {n_iter!r}")
+
+
+def _check_unit_interval(name: str, value, lo: float, hi: float, open_lo: bool, open_hi: bool):
+    arr = np.asarray(value, dtype=np.float64)
+    ok = np.isfinite(arr) & (arr > lo if open_lo else arr >= lo) & (arr < hi if open_hi else arr <= hi)
+    if not np.all(ok):
+        lb = "(" if open_lo else "["
+        rb = ")" if open_hi else "]"
+        raise ValueError(f"{name} must lie in {lb}{lo}, {hi}{rb}, got {arr.tolist()!r}")
+
+
+def check_range(name: str, value, lo: float, hi: float = np.inf, *, open_lo=False, open_hi=False):
+    """Raise ValueError unless every entry of ``value`` lies in the given interval."""
+    _check_unit_interval(name, value, lo, hi, open_lo, open_hi)
+
+
+class ZDT1:
+    """ZDT1 (Zitzler, Deb & Thiele 2000): 30 variables in [0, 1], two objectives, no limits.
+
+    Known front ``f2 = 1 − sqrt(f1)``, ``f1 ∈ [0, 1]`` (:meth:`pareto_front`).
+    """
+
+    n_obj = 2
+    n_con = 0
+
+    def __init__(self, n_var: int = 30):
+        self.n_var = int(n_var)
+        self.lower = np.zeros(self.n_var)
+        self.upper = np.ones(self.n_var)
+
+    def evaluate_jax(self, X):
+        f1 = X[:, 0]
+        g = 1.0 + 9.0 * jnp.mean(X[:, 1:], axis=1)
+        f2 = g * (1.0 - jnp.sqrt(jnp.clip(f1 / g, 0.0, None)))
+        return jnp.stack([f1, f2], 1), jnp.zeros((X.shape[0], 0), X.dtype)
+
+    def evaluate(self, X):
+        with jax.enable_x64(True):
+            F, G = self.evaluate_jax(jnp.asarray(X, jnp.float64))
+            return np.asarray(F), np.asarray(G)
+
+    @staticmethod
+    def pareto_front(n: int = 1000) -> np.ndarray:
+        f1 = np.linspace(0.0, 1.0, n)
+        return np.stack([f1, 1.0 - np.sqrt(f1)], 1)
+
+    def __repr__(self) -> str:
+        return f"ZDT1(n_var={self.n_var})"
+
+
+jax.tree_util.register_pytree_node(
+    ZDT1, lambda p: ((), p.n_var), lambda n, _: ZDT1(n)
+)
+
+
+def hypervolume_2d(F, feasible, ref):
+    """Exact 2-D hypervolume (minimisation) of the feasible points of F (n, 2) up to ``ref``.
+
+    Traceable: sort by f1, keep the running minimum of f2, sum the rectangles.
+    """
+    big = jnp.asarray(jnp.inf, F.dtype)
+    f1 = jnp.where(feasible & jnp.all(F < ref, axis=1), F[:, 0], big)
+    order = jnp.argsort(f1)
+    f1s = f1[order]
+    f2s = jnp.where(jnp.isfinite(f1s), F[order, 1], ref[1])
+    best = jax.lax.cummin(f2s)
+    prev = jnp.concatenate([jnp.full((1,), ref[1], F.dtype), best[:-1]])
+    width = jnp.where(jnp.isfinite(f1s), ref[0] - f1s, 0.0)
+    return jnp.sum(width * jnp.maximum(prev - best, 0.0))
+
+
+def run(
+    algorithm: ModuleType,
+    key: jax.Array,
+    problem,
+    params,
+    n_iter: int,
+    *,
+    history: Callable | None = None,
+):
+    """Initialise and iterate ``n_iter`` steps with ``lax.scan`` (traceable; jit it).
+
+    ``history(state) -> pytree`` is recorded after every step (e.g. the hypervolume of the
+    current population) without leaving the compiled loop. Returns ``(state, trace)``.
+    """
+    state = algorithm.init(key, problem, params)
+
+    def body(s, _):
+        s = algorithm.step(s, problem, params)
+        return s, (history(s) if history is not None else None)
+
+    return jax.lax.scan(body, state, None, length=n_iter)
+
+
+def replace(obj, **changes):
+    """``dataclasses.replace`` for the frozen pytree dataclasses here."""
+    return dataclasses.replace(obj, **changes)
