@@ -18,9 +18,8 @@ import numpy as np
 import pytest
 
 from dockjax import pareto
-from dockjax.algorithms import base, mopso, nsga2
+from dockjax.algorithms import base, mopso, nsga2, variation
 from dockjax.algorithms.base import ZDT1
-from dockjax.algorithms import variation
 from dockjax.algorithms.variation import binary_tournament
 
 # Jitted once per shape: one compiled program each instead of many eager primitives.
@@ -228,20 +227,25 @@ def test_validate_accepts_defaults_and_the_one_over_n_sentinel():
 
 def test_repository_truncation_empties_the_most_crowded_cube_first():
     # Nine mutually non-dominated points for a capacity of 6: five crowd the cube at the
-    # top-left corner, the other four lie apart. Three must go, all from the crowd, and the
-    # crowd's earliest members (lowest index) stay.
+    # top-left corner (one of them already in the repository), four lie apart. Three must
+    # go, all from the crowd: the incumbent stays, then the earliest newcomer.
     crowd = np.array([[0.0, 1.0], [0.001, 0.999], [0.002, 0.998], [0.003, 0.997], [0.004, 0.996]])
     apart = np.array([[0.3, 0.7], [0.5, 0.5], [0.7, 0.3], [1.0, 0.0]])
-    F = jnp.asarray(np.vstack([crowd, apart]))
-    U = jnp.asarray(np.arange(9.0)[:, None] * np.ones((1, 2)) / 10)
-    G = jnp.zeros((9, 0))
-    cand = base.Population(U=U, F=F, G=G, cv=jnp.zeros(9))
+
+    def population(F):
+        F = jnp.asarray(F)
+        n = F.shape[0]
+        return base.Population(U=jnp.zeros((n, 2)), F=F, G=jnp.zeros((n, 0)), cv=jnp.zeros(n))
+
     k = 6
-    empty = jax.tree_util.tree_map(lambda a: a[:k], cand)
-    repo, valid = _update_repository(empty, jnp.zeros(k, bool), cand, n_div=30)
+    repo = population(np.vstack([crowd[4:], np.zeros((k - 1, 2))]))
+    valid = jnp.arange(k) == 0
+    new = population(np.vstack([crowd[:4], apart]))
+    repo, valid = _update_repository(repo, valid, new, n_div=30)
     assert int(valid.sum()) == k
     kept = np.asarray(repo.F)[np.asarray(valid)]
-    np.testing.assert_allclose(kept, np.vstack([crowd[:2], apart]), atol=1e-6)
+    np.testing.assert_allclose(kept, np.vstack([crowd[4], crowd[0], apart]), atol=1e-6)
+    assert np.all(np.isinf(np.asarray(repo.F)[~np.asarray(valid)]))
 
 
 def test_repository_rejects_dominated_and_duplicate_members():
