@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-__all__ = ["enable_compilation_cache", "DemoArgs", "demo", "demo_main"]
+__all__ = ["enable_compilation_cache", "DemoArgs", "demo", "demo_main", "PlanArgs", "plan_cmd", "main"]
 
 
 def enable_compilation_cache() -> None:
@@ -94,3 +94,90 @@ def demo_main() -> None:
     import tyro
 
     sys.exit(demo(tyro.cli(DemoArgs)))
+
+
+Pose = tuple[float, float, float, float, float, float]
+
+
+@dataclass(frozen=True)
+class PlanArgs:
+    """Plan one certified docking trajectory and write trajectory.csv, summary.json,
+    front.png and trajectory.png into --out. Exit codes: 0 planned, 1 no trajectory meets
+    the limits (the limit is named), 2 bad input."""
+
+    start: Pose = (775.0, -35.0, -1315.0, 0.2, -0.2, 190.0)
+    """Measured cabin pose x y z [mm] pitch yaw roll [deg]."""
+    goal: Pose = (745.0, -5.0, -1515.0, 0.0, 0.0, 180.0)
+    """Docking pose x y z [mm] pitch yaw roll [deg]."""
+    limits: Path | None = None
+    """TOML or JSON file overriding travel, velocity, acceleration (4 or 8 numbers) and home (8)."""
+    arm_distance: float = 2000.0
+    """Distance D2 between the arm ends [mm]."""
+    interval_bounds: tuple[float, float] = (3.5, 10.0)
+    """Bounds of each of the six knot intervals [s]."""
+    select: Literal["compromise", "time", "smooth"] = "compromise"
+    """Which point of the front (paper Table 4 types)."""
+    weights: tuple[float, float] | None = None
+    """Weights (w_T, w_jerk) of Eq. 26; overrides --select."""
+    rate: float = 1000.0
+    """Servo rate of the CSV [Hz]."""
+    pop: int = 150
+    """Optimiser population."""
+    iters: int = 100
+    """Optimiser iterations."""
+    seed: int = 0
+    """Random seed."""
+    out: Path = Path("plan")
+    """Output folder."""
+
+
+def plan_cmd(args: PlanArgs) -> int:
+    import math
+
+    from . import DockingProblem, select
+    from .plan import PlanError, load_limits, plan, write_plan
+
+    def bad(msg: str) -> int:
+        print(f"error: {msg}", file=sys.stderr)
+        return 2
+
+    for name in ("start", "goal"):
+        if not all(math.isfinite(v) for v in getattr(args, name)):
+            return bad(f"--{name} must be six finite numbers, got {list(getattr(args, name))}")
+    if not (math.isfinite(args.rate) and args.rate > 0):
+        return bad(f"--rate must be > 0, got {args.rate}")
+    if args.pop < 4 or args.iters < 1:
+        return bad(f"--pop must be >= 4 and --iters >= 1, got {args.pop} and {args.iters}")
+    weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
+    try:
+        select.check_weights(weights, 2)
+        extra = load_limits(args.limits) if args.limits is not None else {}
+        problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
+                                 interval_bounds=args.interval_bounds, **extra)
+    except ValueError as exc:
+        return bad(str(exc))
+    if args.out.exists() and not args.out.is_dir():
+        return bad(f"--out {args.out} exists and is not a folder")
+    enable_compilation_cache()
+    try:
+        p = plan(problem, weights=weights, rate=args.rate, pop_size=args.pop, n_iter=args.iters, seed=args.seed)
+    except PlanError as exc:
+        print(f"no plan: {exc}", file=sys.stderr)
+        return 1
+    try:
+        files = write_plan(p, args.out)
+    except OSError as exc:
+        return bad(f"--out {args.out} cannot be written: {exc}")
+    print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g}; every limit certified at {args.rate:g} Hz "
+          f"and at the exact extrema per knot span")
+    for f in files:
+        print(f"  wrote {f}")
+    return 0
+
+
+def main() -> None:
+    """``dockjax plan ...`` / ``dockjax demo ...``."""
+    import tyro
+
+    cmd = tyro.extras.subcommand_cli_from_dict({"plan": PlanArgs, "demo": DemoArgs})
+    sys.exit(plan_cmd(cmd) if isinstance(cmd, PlanArgs) else demo(cmd))

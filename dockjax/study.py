@@ -1,0 +1,236 @@
+"""The paper's comparison (§5) with statistics: runs, reference front, indicators, tables,
+the choice of three trajectories, and the files of ``experiments/compare.py``.
+
+Data flow: :func:`run_study` runs every algorithm for every seed (one vmapped call per
+algorithm) → the reference front is the non-dominated union of every final feasible set
+(SPEC §8) → indicators per run on objectives normalised by that front → per-algorithm
+medians, interquartile ranges, best runs and a rank-sum test against IMOCS → Table 3 and
+Table 4 analogues from the IMOCS run of median hypervolume.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import config, metrics, plots, select
+from .algorithms import Result, optimize
+from .problem import DockingProblem
+from .trajectory import atomic_write_text
+
+__all__ = ["PRESETS", "make_problem", "hv_reference", "run_study", "Study", "write_study"]
+
+PRESETS = {
+    "paper": dict(interval_bounds=(3.5, 10.0)),
+    "wide": dict(interval_bounds=(0.5, 10.0)),
+}
+"""``paper``: h ∈ [3.5, 10] s (SPEC §3). ``wide``: h ∈ [0.5, 10] s, where the velocity limits
+rather than the interval bounds decide the fast end of the front."""
+
+INDICATORS = ("ONVG", "GD", "SP", "IGD", "HV")
+TYPES = ("compromise", "time", "smooth")
+
+
+def make_problem(preset: str) -> DockingProblem:
+    if preset not in PRESETS:
+        raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {preset!r}")
+    return DockingProblem(**PRESETS[preset])
+
+
+def hv_reference(problem: DockingProblem) -> np.ndarray:
+    """A fixed reference point (objective units) for convergence curves, set before any run:
+    T = 6 h_max, and twice the jerk of the straight-line trajectory at the shortest
+    intervals (a fast, plain candidate)."""
+    lo, hi = problem.interval_bounds
+    x = np.concatenate([np.full(6, lo), np.linspace(problem.start, problem.goal, 7)[1:6].ravel()])
+    F, _ = problem.evaluate(x[None, : problem.n_var])
+    return np.array([6 * hi, 2 * F[0, 1]])
+
+
+@dataclass
+class Study:
+    preset: str
+    problem: DockingProblem
+    results: dict[str, Result]
+    reference_front: np.ndarray
+    ideal: np.ndarray
+    nadir: np.ndarray
+    per_run: dict[str, dict[str, np.ndarray]]
+    seconds: float
+
+
+def _nondominated(F: np.ndarray) -> np.ndarray:
+    F = np.unique(F, axis=0)
+    keep = np.ones(len(F), bool)
+    for i in range(len(F)):
+        dom = np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1)
+        keep[i] = not dom.any()
+    out = F[keep]
+    return out[np.argsort(out[:, 0])]
+
+
+def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), seeds=range(31),
+              pop_size: int = 150, n_iter: int = 100, log=print) -> Study:
+    """Run every algorithm for every seed and score them (SPEC §8)."""
+    import time
+
+    t0 = time.perf_counter()
+    problem = make_problem(preset)
+    ref_point = hv_reference(problem)
+    results = {}
+    for name in algorithms:
+        r = optimize(name, problem, seeds=list(seeds), pop_size=pop_size, n_iter=n_iter, hv_ref=ref_point)
+        log(f"[{preset}] {name}: {len(r)} runs in {r.seconds:.1f} s (compile included)")
+        results[name] = r
+    union = np.concatenate([f for r in results.values() for f in r.fronts() if len(f)] or [np.zeros((0, 2))])
+    ref_front = _nondominated(union) if len(union) else union
+    ideal, nadir = ref_front.min(0), ref_front.max(0)
+    per_run = {}
+    for name, r in results.items():
+        rows = [metrics.indicators(r.F[i], r.front[i], ref_front) for i in range(len(r))]
+        per_run[name] = {k: np.array([row[k] for row in rows]) for k in rows[0]}
+    return Study(preset, problem, results, ref_front, ideal, nadir, per_run, time.perf_counter() - t0)
+
+
+def summary_table(study: Study) -> list[dict]:
+    """Per algorithm and indicator: median, IQR, best run, rank-sum p-value against IMOCS."""
+    from scipy.stats import mannwhitneyu  # scipy comes with jax
+
+    rows = []
+    base = study.per_run.get("imocs")
+    for name, vals in study.per_run.items():
+        row = {"algorithm": name, "runs": len(study.results[name])}
+        for ind in INDICATORS:
+            v = vals[ind]
+            q1, med, q3 = np.nanpercentile(v, [25, 50, 75])
+            best = np.nanmin(v) if ind in ("GD", "IGD", "SP") else np.nanmax(v)
+            row[f"{ind}_median"], row[f"{ind}_iqr"], row[f"{ind}_best"] = med, q3 - q1, best
+            if base is not None and name != "imocs":
+                a, b = v[np.isfinite(v)], base[ind][np.isfinite(base[ind])]
+                p = mannwhitneyu(a, b).pvalue if len(a) and len(b) and np.ptp(np.r_[a, b]) > 0 else 1.0
+                row[f"{ind}_p_vs_imocs"] = p
+            else:
+                row[f"{ind}_p_vs_imocs"] = np.nan
+        rows.append(row)
+    return rows
+
+
+def median_run(study: Study, name: str) -> int:
+    """Index of the run of median hypervolume."""
+    hv = study.per_run[name]["HV"]
+    return int(np.argsort(hv)[len(hv) // 2])
+
+
+def table3(front: np.ndarray, k: int = 11) -> np.ndarray:
+    """k points spread uniformly in T along a front (the paper's Table 3). → (k', 2)."""
+    targets = np.linspace(front[0, 0], front[-1, 0], k)
+    idx = np.unique([int(np.argmin(np.abs(front[:, 0] - t))) for t in targets])
+    return front[idx]
+
+
+def chosen_trajectories(study: Study, name: str = "imocs") -> dict[str, dict]:
+    """The three trajectories of Table 4 from the median run's front, with the maximum
+    |velocity| and |acceleration| of every joint beside its limit."""
+    r = study.results[name]
+    i = median_run(study, name)
+    m = r.front[i]
+    F, X, G = r.F[i][m], r.X[i][m], r.G[i][m]
+    order = np.argsort(F[:, 0])
+    F, X, G = F[order], X[order], G[order]
+    out = {}
+    for kind in TYPES:
+        j = select.choose_type(F, kind)
+        maxima = (G[j].reshape(8, 3) + 1.0) * study.problem.limits
+        out[kind] = {"x": X[j], "T": F[j, 0], "jerk": F[j, 1], "G": G[j], "maxima": maxima}
+    return out
+
+
+def _fmt(v) -> str:
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return f"{v:.4g}"
+
+
+def _write_table(rows: list[dict], stem: Path) -> None:
+    cols = list(rows[0])
+    atomic_write_text(stem.with_suffix(".csv"), "\n".join([",".join(cols)] + [",".join(_fmt(r[c]) for c in cols) for r in rows]) + "\n")
+    md = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    md += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in rows]
+    atomic_write_text(stem.with_suffix(".md"), "\n".join(md) + "\n")
+
+
+def write_study(study: Study, out: Path) -> list[Path]:
+    """Write every table, figure and the raw data of one preset into ``out/<preset>/``."""
+    folder = Path(out) / study.preset
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    rows = summary_table(study)
+    _write_table(rows, folder / "indicators")
+    written += [folder / "indicators.csv", folder / "indicators.md"]
+    # per-run indicators (every number of the table can be recomputed from these)
+    per = [{"algorithm": n, "seed": int(s), **{k: v[i] for k, v in vals.items()}}
+           for n, vals in study.per_run.items() for i, s in enumerate(study.results[n].seeds)]
+    _write_table(per, folder / "runs")
+    written += [folder / "runs.csv"]
+    # raw data
+    raw = {}
+    for n, r in study.results.items():
+        raw.update({f"{n}_X": r.X, f"{n}_F": r.F, f"{n}_G": r.G, f"{n}_front": r.front,
+                    f"{n}_seeds": r.seeds, f"{n}_history": r.history})
+    raw["reference_front"] = study.reference_front
+    tmp = folder / ".raw.tmp.npz"
+    np.savez_compressed(tmp, **raw)
+    tmp.replace(folder / "raw.npz")
+    written.append(folder / "raw.npz")
+    # Table 3 and Table 4 analogues
+    i = median_run(study, "imocs") if "imocs" in study.results else 0
+    name = "imocs" if "imocs" in study.results else next(iter(study.results))
+    front = study.results[name].fronts()[i]
+    t3 = [{"serial": k + 1, "T_s": f[0], "jerk": f[1]} for k, f in enumerate(table3(front))] if len(front) else [{"serial": 0, "T_s": np.nan, "jerk": np.nan}]
+    _write_table(t3, folder / "table3")
+    written += [folder / "table3.csv", folder / "table3.md"]
+    chosen = chosen_trajectories(study, name) if len(front) else {}
+    t4 = []
+    for kind, c in chosen.items():
+        row = {"type": kind, "T_s": c["T"], "jerk": c["jerk"]}
+        for j, jn in enumerate(config.JOINT_NAMES):
+            row[f"{jn}_max_vel"] = c["maxima"][j, 1]
+            row[f"{jn}_vel_limit"] = study.problem.limits[j, 1]
+            row[f"{jn}_max_acc"] = c["maxima"][j, 2]
+            row[f"{jn}_acc_limit"] = study.problem.limits[j, 2]
+        t4.append(row)
+    if t4:
+        _write_table(t4, folder / "table4")
+        written += [folder / "table4.csv", folder / "table4.md"]
+        atomic_write_text(folder / "chosen.json", json.dumps(
+            {k: {"x": c["x"].tolist(), "T": float(c["T"]), "jerk": float(c["jerk"])} for k, c in chosen.items()}, indent=2))
+        written.append(folder / "chosen.json")
+    # figures
+    fronts = {n: r.fronts()[median_run(study, n)] for n, r in study.results.items()}
+    written.append(plots.plot_fronts(fronts, folder / "fronts.png", reference=study.reference_front,
+                                     title=f"fronts of the median-HV runs ({study.preset})"))
+    if chosen:
+        samples = {}
+        for kind, c in chosen.items():
+            traj = study.problem.decode(c["x"])
+            t = np.linspace(0.0, traj.T, 600)
+            samples[f"{kind} (T={c['T']:.1f} s)"] = {
+                "t": t, "pose": traj.pose(t), "pose_vel": traj.pose(t, 1), "pose_acc": traj.pose(t, 2)}
+        written.append(plots.plot_left_arm(samples, folder / "left_arm_xyz.png"))
+        traj = study.problem.decode(chosen["compromise"]["x"])
+        t = np.linspace(0.0, traj.T, 600)
+        sample = {"t": t, "position": traj.joints(t), "velocity": traj.joints(t, 1),
+                  "acceleration": traj.joints(t, 2)}
+        written.append(plots.plot_joints(sample, study.problem.limits, folder / "joints.png",
+                                         title="joints of the compromise trajectory"))
+    hist = {n: r.history for n, r in study.results.items() if r.history is not None}
+    written.append(plots.plot_convergence(hist, folder / "convergence.png",
+                                          title=f"hypervolume (ref {np.round(hv_reference(study.problem), 3).tolist()})"))
+    return written
+
+
