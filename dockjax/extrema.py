@@ -11,6 +11,7 @@ every function works elementwise on arrays of coefficients (any leading shape).
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from .bspline import poly_derivative, poly_eval
@@ -76,8 +77,8 @@ def bracketed_root(c, dc, lo, hi, steps: int | None = None):
     fa, fb = jnp.minimum(flo, fhi), jnp.maximum(flo, fhi)
     den = fb - fa
     x = jnp.where(den > 0, a - fa * (b - a) / jnp.where(den > 0, den, 1.0), 0.5 * (a + b))
-    last = jnp.abs(b - a)
-    for _ in range(NEWTON_STEPS if steps is None else steps):
+    def newton(_, carry):
+        x, a, b, last = carry
         fx = poly_eval(c, x)
         a = jnp.where(fx <= 0.0, x, a)
         b = jnp.where(fx > 0.0, x, b)
@@ -88,8 +89,12 @@ def bracketed_root(c, dc, lo, hi, steps: int | None = None):
         small = jnp.abs(step) <= 1e-12 * jnp.abs(hi - lo)  # converged: stay
         good = ok & ((xn - a) * (xn - b) <= 0.0) & ((2.0 * jnp.abs(step) <= last) | small)
         x_new = jnp.where(good, xn, 0.5 * (a + b))
-        last = jnp.abs(x_new - x)
-        x = x_new
+        return x_new, a, b, jnp.abs(x_new - x)
+
+    # a rolled loop keeps the compiled program small (compile time matters here)
+    x, a, b, _ = jax.lax.fori_loop(
+        0, NEWTON_STEPS if steps is None else steps, newton, (x, a, b, jnp.abs(b - a))
+    )
     eps = CERTIFICATE * jnp.abs(hi - lo)
     left = jnp.clip(x - eps, lo, hi)
     right = jnp.clip(x + eps, lo, hi)

@@ -1,0 +1,157 @@
+"""End to end: experiments/compare.py and the installed `dockjax plan` script."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dockjax import DockingProblem
+from tests import reference as R
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = Path(sys.executable).parent / "dockjax"
+ENV = {**os.environ, "DOCKJAX_CACHE": str(ROOT / ".pytest-jax-cache")}
+
+
+def _run(cmd, **kw):
+    return subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=600, **kw)
+
+
+def _is_png(path: Path) -> bool:
+    return path.stat().st_size > 2000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def compare_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cmp")
+    r = _run([sys.executable, str(ROOT / "experiments" / "compare.py"), "--seeds", "2", "--pop", "10",
+              "--iters", "3", "--presets", "paper", "--algorithms", "imocs", "nsga2", "--out", str(out)])
+    assert r.returncode == 0, r.stderr[-2000:]
+    return out / "paper", r.stdout
+
+
+def test_compare_writes_every_promised_file(compare_out):
+    folder, stdout = compare_out
+    for name in ("indicators.csv", "indicators.md", "runs.csv", "table3.csv", "table3.md", "table4.csv",
+                 "table4.md", "chosen.json", "raw.npz"):
+        assert (folder / name).stat().st_size > 0, name
+    for name in ("fronts.png", "left_arm_xyz.png", "joints.png", "convergence.png"):
+        assert _is_png(folder / name), name
+    header = (folder / "indicators.csv").read_text().splitlines()[0].split(",")
+    for ind in ("ONVG", "GD", "SP", "IGD", "HV"):
+        assert f"{ind}_median" in header and f"{ind}_iqr" in header and f"{ind}_p_vs_imocs" in header
+    raw = np.load(folder / "raw.npz")
+    assert raw["imocs_F"].shape[:2] == (2, 10) and raw["nsga2_history"].shape == (2, 3)
+    assert "wall time" in stdout
+
+
+def test_compare_chosen_trajectories_are_feasible_on_the_dense_check(compare_out):
+    folder, _ = compare_out
+    chosen = json.loads((folder / "chosen.json").read_text())
+    p = DockingProblem()
+    assert set(chosen) == {"compromise", "time", "smooth"}
+    for c in chosen.values():
+        g = R.dense_constraints(np.array(c["x"]), p.start, p.goal, p.arm_distance, p.limits[:4, 0],
+                                p.limits[:4, 1], p.limits[:4, 2])
+        assert np.all(g <= 0)
+    assert chosen["time"]["T"] <= chosen["compromise"]["T"] <= chosen["smooth"]["T"]
+
+
+def test_compare_rejects_bad_input_with_exit_2(tmp_path):
+    r = _run([sys.executable, str(ROOT / "experiments" / "compare.py"), "--seeds", "0", "--out", str(tmp_path / "x")])
+    assert r.returncode == 2 and "--seeds" in r.stderr
+
+
+PLAN_ARGS = ["--pop", "16", "--iters", "8", "--rate", "200"]
+
+
+@pytest.fixture(scope="module")
+def plan_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plan") / "out"
+    r = _run([str(SCRIPT), "plan", *PLAN_ARGS, "--out", str(out)])
+    assert r.returncode == 0, r.stderr[-2000:]
+    return out
+
+
+def test_plan_writes_four_files_and_a_controller_ready_csv(plan_out):
+    for name in ("trajectory.csv", "summary.json", "front.png", "trajectory.png"):
+        assert (plan_out / name).exists(), name
+    assert _is_png(plan_out / "front.png") and _is_png(plan_out / "trajectory.png")
+    summary = json.loads((plan_out / "summary.json").read_text())
+    data = np.loadtxt(plan_out / "trajectory.csv", delimiter=",", skiprows=1)
+    header = (plan_out / "trajectory.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "t [s]" and header[7] == "d_L1 [mm]" and header[8] == "d_L1_vel [mm/s]"
+    t = data[:, 0]
+    assert t[-1] == pytest.approx(summary["T_s"], abs=1e-12)
+    np.testing.assert_allclose(np.diff(t[:-1]), 1 / 200, atol=1e-12)
+    p = DockingProblem()
+    np.testing.assert_allclose(data[0, 1:7], p.start, atol=1e-9)
+    np.testing.assert_allclose(data[-1, 1:7], p.goal, atol=1e-9)
+    joints = data[:, 7:].reshape(len(t), 8, 4)  # position, velocity, acceleration, jerk
+    for row in (0, -1):
+        assert np.max(np.abs(joints[row, :, 1])) < 1e-9 and np.max(np.abs(joints[row, :, 2])) < 1e-9
+    lim = p.limits
+    assert np.all(np.abs(joints[:, :, 0] - p.home) <= lim[:, 0])
+    assert np.all(np.abs(joints[:, :, 1]) <= lim[:, 1])
+    assert np.all(np.abs(joints[:, :, 2]) <= lim[:, 2])
+    # finite differences of the sampled positions match the sampled velocities
+    dt = 1 / 200
+    fd = (joints[2:-1, :, 0] - joints[:-3, :, 0]) / (2 * dt)
+    scale = np.max(np.abs(joints[:, :, 1]), axis=0) + 1e-12
+    assert np.max(np.abs(fd - joints[1:-2, :, 1]) / scale) < 1e-3
+    for name, j in summary["joints"].items():
+        assert j["velocity_margin"] >= 0 and j["acceleration_margin"] >= 0 and j["travel_margin"] >= 0
+
+
+def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path):
+    limits = tmp_path / "limits.json"
+    limits.write_text(json.dumps({"velocity": [400, 25, 0.4, 6.8]}))
+    out = tmp_path / "out"
+    out.mkdir()
+    r = _run([str(SCRIPT), "plan", *PLAN_ARGS, "--limits", str(limits), "--out", str(out)])
+    assert r.returncode == 1, r.stderr[-2000:]
+    assert "velocity" in r.stderr and ("d_L3" in r.stderr or "d_R3" in r.stderr)
+    assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--start", "1", "2", "3", "4", "5"], "start"),
+        (["--start", "775", "-35", "-1315", "nan", "-0.2", "190"], "start"),
+        (["--goal", "900", "-5", "-1515", "0", "0", "180"], "stroke"),
+        (["--rate", "0"], "rate"),
+        (["--rate", "abc"], "rate"),
+        (["--limits", "/nonexistent/limits.toml"], "limits"),
+        (["--weights", "-1", "1"], "weights"),
+    ],
+)
+def test_plan_bad_input_exits_2_and_writes_nothing(tmp_path, args, needle):
+    out = tmp_path / "out"
+    r = _run([str(SCRIPT), "plan", *args, "--out", str(out)])
+    assert r.returncode == 2, (r.returncode, r.stderr[-500:])
+    assert needle in r.stderr.lower() or needle in r.stdout.lower()
+    assert not out.exists()
+
+
+def test_plan_limits_file_with_a_negative_limit_exits_2(tmp_path):
+    limits = tmp_path / "limits.toml"
+    limits.write_text("velocity = [400, 25, -2.5, 6.8]\n")
+    r = _run([str(SCRIPT), "plan", "--limits", str(limits), "--out", str(tmp_path / "out")])
+    assert r.returncode == 2 and "velocity" in r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_python_api_returns_the_certified_trajectory_as_arrays():
+    from dockjax.plan import plan
+
+    p = plan(weights=(1, 0), pop_size=12, n_iter=4, rate=50)
+    assert p.samples["position"].shape == (len(p.samples["t"]), 8)
+    assert math.isclose(p.samples["t"][-1], p.T)
