@@ -171,7 +171,7 @@ def write_plan(p: Plan, out: str | Path) -> list[Path]:
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     files.append(out / "summary.json")
-    files.append(plots.plot_fronts({"imocs": p.front}, out / "front.png",
+    files.append(plots.plot_fronts({"imocs": p.front}, out / "front.png", highlight=(p.T, p.jerk),
                                    title=f"front and chosen point (T = {p.T:.2f} s)"))
     s = p.samples
     files.append(plots.plot_joints(s, p.problem.limits, out / "trajectory.png",

@@ -31,6 +31,9 @@ def save(fig, path: str | os.PathLike) -> Path:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=120, bbox_inches="tight")
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
         os.replace(tmp, path)
     finally:
         plt.close(fig)
@@ -39,8 +42,9 @@ def save(fig, path: str | os.PathLike) -> Path:
     return path
 
 
-def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title="") -> Path:
-    """All algorithms' fronts in one plot (the paper's Fig. 12). fronts: name → (k, 2)."""
+def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title="", highlight=None) -> Path:
+    """All algorithms' fronts in one plot (the paper's Fig. 12). fronts: name → (k, 2);
+    ``highlight``: one (T, jerk) point to mark (e.g. the chosen trajectory)."""
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     if reference is not None and len(reference):
         r = reference[np.argsort(reference[:, 0])]
@@ -48,6 +52,8 @@ def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title=""
     for name, f in fronts.items():
         if len(f):
             ax.plot(f[:, 0], f[:, 1], "o", ms=3, color=COLORS.get(name), label=LABELS.get(name, name))
+    if highlight is not None:
+        ax.plot([highlight[0]], [highlight[1]], "*", ms=14, color="k", label="chosen")
     ax.set_xlabel("total time T [s]")
     ax.set_ylabel("jerk objective (Eq. 25)")
     ax.set_yscale("log")

@@ -49,6 +49,9 @@ than a good run, runs can dominate parts of it (GD and IGD+ then approach 0 and 
 exceed the pilot's own); the numbers are comparable within one folder, not across folders
 with different references.
 
+For MOCS, NSGA-II and MOPSO (which have no ρ or α_max) the grid is a single setting per
+population size, and the rho and alpha_max columns hold nan.
+
 ``wall_s`` is the wall time of the run's chunk (compilation included for the first chunk of
 a population size in a process) divided by the chunk's size.
 
@@ -557,7 +560,7 @@ class DaskBackend:
 
         self.cluster = None
         if scheduler:
-            self.client = Client(scheduler)
+            self.client = Client(scheduler, timeout="15s")
         else:
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
                                         dashboard_address=None, silence_logs=logging.ERROR)
@@ -636,21 +639,28 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
 
     out = Path(out)
     chunks_dir = out / "chunks"
-    _write_config(out, cfg)
-    chunks_dir.mkdir(exist_ok=True)
-    for stale in chunks_dir.glob(".chunk-*.tmp"):  # left by a kill during a write
-        stale.unlink(missing_ok=True)
-    plan = plan_chunks(cfg)
-    done = {c.index for c in plan if _readable(chunks_dir / c.name)}
-    todo = [c for c in plan if c.index not in done]
-    n_total = sum(c.n_real for c in plan)
-    n_done = sum(c.n_real for c in plan if c.index in done)
-    log(f"sweep: {cfg.algorithm}, {cfg.n_runs()} runs ({len(cfg.settings())} settings × {cfg.seeds} seeds, "
-        f"{cfg.iters} iterations) in {len(plan)} chunks of {len(plan[0].seeds)}; "
-        + (f"resuming: {len(done)} of {len(plan)} chunks already done" if done else "starting"))
-    be = DaskBackend(scheduler, workers, dask_processes) if backend == "dask" else LocalBackend()
+    if backend == "dask":
+        try:
+            be = DaskBackend(scheduler, workers, dask_processes)
+        except (OSError, TimeoutError) as exc:
+            where = f"the Dask scheduler at {scheduler}" if scheduler else "a Dask LocalCluster"
+            raise ConfigError(f"cannot connect to {where}: {exc}") from None
+    else:
+        be = LocalBackend()
     pause = float(os.environ.get("DOCKJAX_SWEEP_PAUSE", "0") or 0)
     try:
+        _write_config(out, cfg)
+        chunks_dir.mkdir(exist_ok=True)
+        for stale in chunks_dir.glob(".chunk-*.tmp"):  # left by a kill during a write
+            stale.unlink(missing_ok=True)
+        plan = plan_chunks(cfg)
+        done = {c.index for c in plan if _readable(chunks_dir / c.name)}
+        todo = [c for c in plan if c.index not in done]
+        n_total = sum(c.n_real for c in plan)
+        n_done = sum(c.n_real for c in plan if c.index in done)
+        log(f"sweep: {cfg.algorithm}, {cfg.n_runs()} runs ({len(cfg.settings())} settings × {cfg.seeds} seeds, "
+            f"{cfg.iters} iterations) in {len(plan)} chunks of {len(plan[0].seeds)}; "
+            + (f"resuming: {len(done)} of {len(plan)} chunks already done" if done else "starting"))
         ref = _reference(out, cfg, front, be, log)
         if not todo:
             return 0
@@ -725,7 +735,7 @@ def _settings_summary(cols: dict[str, np.ndarray]) -> list[dict]:
         hv = cols["HV"][idx]
         q1, med, q3 = np.nanpercentile(hv, [25, 50, 75]) if np.isfinite(hv).any() else (np.nan,) * 3
         row = {"pop": int(k[0]), "rho": cols["rho"][idx[0]], "alpha_max": cols["alpha_max"][idx[0]],
-               "runs": len(idx), "HV_median": med, "HV_iqr": q3 - q1}
+               "runs": len(idx), "HV_median": med, "HV_iqr": q3 - q1, "_q": (q1, q3)}
         for ind in ("IGD", "IGD+", "GD", "SP", "ONVG"):
             v = cols[ind][idx].astype(float)
             row[f"{ind}_median"] = float(np.nanmedian(v)) if np.isfinite(v).any() else np.nan
@@ -807,13 +817,16 @@ def report(out: Path, *, top: int = 10, log: Callable[[str], None] = print) -> l
     groups: dict = {}
     for r in rows:
         groups.setdefault((_fmt(r["rho"]), _fmt(r["alpha_max"])), []).append(r)
-    for (rho, alpha), rs in sorted(groups.items()):
+    pops = sorted({r["pop"] for r in rows})
+    dx = 0.01 * (max(pops) - min(pops) or max(pops))  # side by side, so the bars stay readable
+    for g, ((rho, alpha), rs) in enumerate(sorted(groups.items())):
         rs = sorted(rs, key=lambda r: r["pop"])
-        x = [r["pop"] for r in rs]
+        x = np.array([r["pop"] for r in rs], float) + dx * (g - (len(groups) - 1) / 2)
         y = np.array([r["HV_median"] for r in rs])
-        e = np.array([r["HV_iqr"] for r in rs]) / 2
+        q = np.array([r["_q"] for r in rs]).reshape(-1, 2)
         label = algo if rho == "nan" else f"ρ={float(rho):g}, α_max={float(alpha):g}"
-        ax.errorbar(x, y, yerr=e, marker="o", capsize=3, label=label)
+        ax.errorbar(x, y, yerr=[y - q[:, 0], q[:, 1] - y], marker="o", capsize=3, label=label)
+    ax.set_xticks(pops)
     ax.set_xlabel("population size")
     ax.set_ylabel("hypervolume (median, bar = IQR)")
     ax.set_title(f"{algo}: HV against population size")
@@ -823,7 +836,8 @@ def report(out: Path, *, top: int = 10, log: Callable[[str], None] = print) -> l
     # fronts of the best and the worst setting
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     R = ref["front"]
-    ax.plot(R[:, 0], R[:, 1], "-", color="0.6", lw=1, label="reference front")
+    ax.plot(R[:, 0], R[:, 1], ".-", color="0.5", lw=1, ms=4, drawstyle="steps-post",
+            label="reference front (fixed at sweep start)")
     for r, color, what in ((rows[0], "C3", "best"), (rows[-1], "C0", "worst")):
         for n, i in enumerate(r["_idx"]):
             f = fronts[i]
@@ -866,6 +880,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         run_sweep(cfg, args.out, front=front, backend=args.backend, scheduler=args.scheduler,
                   workers=args.workers, dask_processes=args.dask_processes, progress=args.progress)
+    except ConfigError as exc:  # e.g. an unreachable scheduler; nothing was computed
+        remove_created(created)
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"\ninterrupted: finished chunks are saved in {args.out / 'chunks'}; re-run the same command to resume",
               file=sys.stderr)

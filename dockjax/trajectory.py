@@ -25,6 +25,12 @@ _SUFFIX = ("", "_vel", "_acc", "_jerk")
 _UNIT_POWER = ("", "/s", "/s^2", "/s^3")
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     """Write a text file atomically: a temporary file in the same folder, then a rename."""
     path = Path(path)
@@ -34,6 +40,7 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

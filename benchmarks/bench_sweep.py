@@ -1,0 +1,92 @@
+"""Throughput of a sweep chunk, the extrapolated wall time of a 1000-run sweep, and pymoo.
+
+    python benchmarks/bench_sweep.py [--pop 150] [--iters 100] [--chunk 16] [--runs 1000] [--pymoo-runs 2]
+    python benchmarks/bench_sweep.py --pop 8 --iters 3 --chunk 2 --pymoo-runs 1   # a quick check
+
+Times :func:`dockjax.sweep.run_chunk` (one compiled vmapped IMOCS call over ``--chunk`` runs,
+each with its own seed, ρ and α_max, plus the indicators of every run): the first call
+(compile + run) and the best of two further calls. Extrapolates the wall time of a sweep of
+``--runs`` runs in chunks of that size (one compilation + ceil(runs / chunk) chunks, in
+process, no chunk-file I/O which is milliseconds). Then times pymoo's NSGA-II with the same
+budget (population ``--pop``, ``--iters`` + 1 generations) on the same compiled kernel (via
+:func:`dockjax.interop.as_pymoo_problem`) for ``--pymoo-runs`` runs, and prints the ratio of
+pymoo's time per run to the sweep's time per run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from dockjax.sweep import ChunkSpec, _nondominated_2d, run_chunk
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pop", type=int, default=150)
+    ap.add_argument("--iters", type=int, default=100)
+    ap.add_argument("--chunk", type=int, default=16, help="runs per compiled call")
+    ap.add_argument("--runs", type=int, default=1000, help="sweep size to extrapolate to")
+    ap.add_argument("--pymoo-runs", type=int, default=2)
+    ap.add_argument("--preset", default="paper", choices=("paper", "wide"))
+    args = ap.parse_args()
+
+    n = args.chunk
+    rng = np.random.default_rng(0)
+
+    def spec(offset: int) -> ChunkSpec:
+        return ChunkSpec(index=0, algorithm="imocs", preset=args.preset, pop=args.pop, iters=args.iters,
+                         run_ids=tuple(range(n)), seeds=tuple(range(offset, offset + n)),
+                         rho=tuple(rng.choice([0.3, 0.4, 0.5], n).tolist()),
+                         alpha_max=tuple(rng.choice([0.05, 0.1, 0.2], n).tolist()), n_real=n)
+
+    t0 = time.perf_counter()
+    pilot = run_chunk(spec(10_000))  # compiles the optimiser
+    front = _nondominated_2d(pilot["front_F"])
+    ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": 1.1}
+    run_chunk(spec(20_000), ref)  # compiles the indicators
+    first = time.perf_counter() - t0
+    times = []
+    for k in range(2):
+        t0 = time.perf_counter()
+        run_chunk(spec(k * n), ref)
+        times.append(time.perf_counter() - t0)
+    chunk_s = min(times)
+    per_run = chunk_s / n
+    chunks = math.ceil(args.runs / n)
+    compile_s = max(first - 2 * chunk_s, 0.0)
+    total = compile_s + chunks * chunk_s
+    print(f"IMOCS pop {args.pop}, {args.iters} iterations, chunks of {n} runs ({args.preset} preset)")
+    print(f"  compile (optimiser + indicators): ~{compile_s:.1f} s")
+    print(f"  one chunk: {chunk_s:.2f} s = {per_run:.3f} s per run, {n / chunk_s:.2f} runs/s")
+    print(f"  extrapolated sweep of {args.runs} runs: {chunks} chunks, {total:.0f} s "
+          f"({total / 60:.1f} min) incl. one compilation")
+
+    if args.pymoo_runs > 0:
+        try:
+            from pymoo.algorithms.moo.nsga2 import NSGA2
+            from pymoo.optimize import minimize
+        except ImportError:
+            print("pymoo not installed: pip install 'dockjax[bench]'")
+            return
+        from dockjax.interop import as_pymoo_problem
+        from dockjax.study import make_problem
+
+        pp = as_pymoo_problem(make_problem(args.preset))
+        pp.evaluate(np.tile(pp.xl, (args.pop, 1)))  # compile the kernel for this shape
+        py = []
+        for s in range(args.pymoo_runs):
+            t0 = time.perf_counter()
+            minimize(pp, NSGA2(pop_size=args.pop), ("n_gen", args.iters + 1), seed=s)
+            py.append(time.perf_counter() - t0)
+        py_run = float(np.median(py))
+        print(f"pymoo NSGA-II, same budget, same kernel: {py_run:.2f} s per run (median of {args.pymoo_runs}); "
+              f"{args.runs} runs one after another: {py_run * args.runs / 60:.1f} min")
+        print(f"  ratio pymoo per run / sweep per run: {py_run / per_run:.1f}x")
+
+
+if __name__ == "__main__":
+    main()

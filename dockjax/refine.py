@@ -1,0 +1,336 @@
+"""Gradient polishing of candidate trajectories, and a best-known front (SPEC §3, §5, §6).
+
+:func:`refine` takes a set of candidates ``X`` (n, n_var) and, for every point i at once,
+solves the sub-problem
+
+    minimise jerk(x)  subject to  T(x) ≤ T_i,  G(x) ≤ 0 (the 24 limits of SPEC §6),
+    x in the decision box (SPEC §3)
+
+with Adam (optax) from the point itself. The whole batch is one parameter array: Adam is
+per-coordinate, so summing the per-point losses gives n independent optimisations, run
+by one jitted ``lax.fori_loop`` (the trip count is traced: changing ``steps`` does not
+recompile).
+
+* The variables live in the unit box, ``x = lower + u (upper − lower)``.
+* The box and the time cap ``T ≤ T_i`` are kept by exact Euclidean projection after every
+  update onto ``{0 ≤ u ≤ 1, Σ_k w_k u_k ≤ b_i}`` (the intervals' part; bisection on the
+  multiplier of the one linear constraint), so every iterate satisfies both.
+* The limits are handled by a smooth-plus-exact penalty on ``max(G + margin, 0)``
+  (linear and quadratic terms; the ``margin`` keeps the iterates slightly inside). G has
+  kinks (a maximum over time); that is harmless for a penalty method.
+* The jerk objective (SPEC §5) is recomputed here with a NaN-safe square root (the RMS of a
+  joint that does not move has an infinite derivative at 0) and normalised by the input's
+  jerk; any remaining non-finite gradient entry is zeroed.
+* At every step the current iterate is scored with the problem's own kernel; the best
+  iterate that is feasible (every column of the kernel's G ≤ 0, which never understates,
+  SPEC §6), has ``T ≤ T_i`` and has the lowest jerk is kept. For a feasible input the
+  returned point must also have a strictly lower jerk than the input, so it is never
+  dominated by it; for an infeasible input any feasible point with ``T ≤ T_i`` is a repair
+  (it wins under Deb's constraint-domination, SPEC §6) and the lowest-jerk one is kept.
+  A point for which nothing qualifies is returned unchanged with ``improved`` False.
+
+:func:`best_known_front` is an ε-constraint sweep over ``T`` in ``[6 h_lo, 6 h_hi]`` with the
+same machinery, started from straight-line trajectories with equal intervals (and a few
+randomly perturbed starts). It never sees any optimiser's front: it depends only on the
+problem, so it is an independent yardstick for the optimisers' fronts.
+
+Everything runs in float64 inside ``jax.enable_x64(True)``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from . import bspline, config
+from .problem import GAUSS_NODES, G_SAFETY, DockingProblem, _maxima, decode, right_jets, span_angles
+
+__all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe"]
+
+
+@dataclass(frozen=True)
+class RefineResult:
+    """Output of :func:`refine` (NumPy float64 / bool arrays, n rows as the input).
+
+    ``X`` (n, n_var) the refined points (the input row where nothing was found),
+    ``F`` (n, 2) and ``G`` (n, 24) their kernel scores, ``improved`` (n,) True where the
+    row differs from the input, ``feasible`` (n,) kernel feasibility of the returned row,
+    ``F_in``/``G_in`` the scores of the input, ``seconds`` wall time (compile included on
+    the first call of a shape).
+    """
+
+    X: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    improved: np.ndarray
+    feasible: np.ndarray
+    F_in: np.ndarray
+    G_in: np.ndarray
+    seconds: float
+
+
+@dataclass(frozen=True)
+class FrontResult:
+    """Output of :func:`best_known_front`: the non-dominated feasible points, sorted by T.
+
+    ``X`` (m, n_var), ``F`` (m, 2), ``G`` (m, 24); ``targets`` the swept time caps.
+    """
+
+    X: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    targets: np.ndarray
+    seconds: float
+
+
+# -- objective with a NaN-safe jerk ------------------------------------------------------
+
+
+def _safe_sqrt(v):
+    pos = v > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, v, 1.0)), 0.0)
+
+
+def _safe_jerk(problem, c, h, ref):
+    """As ``problem._jerk`` (SPEC §5, Eq. 25) with a square root whose gradient is finite
+    (0) where a joint's mean-square jerk is 0."""
+    xi, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
+    tau = 0.5 * h[:, None] * (1.0 + jnp.asarray(xi, c.dtype))
+    weights = 0.5 * h[:, None] * jnp.asarray(w, c.dtype)
+    cj = bspline.poly_derivative(jnp.swapaxes(c, 1, 2), 3)
+    pj = bspline.poly_eval(cj[:, None], tau[..., None])
+    rj = right_jets(problem, c, tau, 3, (0, 1, 2), ref)[..., 3] * 6.0
+    jerk = jnp.concatenate(
+        [-pj[..., 2:3], pj[..., 1:2], -pj[..., 0:1], pj[..., 5:6], rj, -pj[..., 5:6]], -1
+    )
+    ms = jnp.einsum("kn,knj->j", weights, jerk * jerk) / jnp.sum(h)
+    return jnp.sum(_safe_sqrt(ms))
+
+
+def objectives_safe(problem: DockingProblem, x):
+    """``score`` (SPEC §5–6) of one candidate with the NaN-safe jerk: x (n_var,) → F (2,),
+    G (24,). Equal in value to :func:`dockjax.problem.score`; differentiable everywhere
+    the kernel is (G is piecewise smooth)."""
+    h, _, c = decode(problem, x)
+    ref = jax.lax.optimization_barrier(span_angles(c, h))
+    F = jnp.stack([jnp.sum(h), _safe_jerk(problem, c, h, ref)])
+    G = (_maxima(problem, c, h, ref) / problem.limits - 1.0 + G_SAFETY).reshape(-1)
+    return F, G
+
+
+# -- projection onto the box with a time cap ----------------------------------------------
+
+
+def _project(U, width_h, cap, n_bisect: int = 60):
+    """Euclidean projection of each row of U (n, d) onto
+    ``{0 ≤ u ≤ 1, Σ_k width_h[k] u[k] ≤ cap}`` (the first 6 columns carry the intervals).
+    cap (n,). ``u = clip(v − λ w, 0, 1)`` with λ ≥ 0 found by bisection."""
+    U = jnp.clip(U, 0.0, 1.0)
+    v = U[:, : config.N_INTERVALS]
+    total = lambda lam: jnp.sum(width_h * jnp.clip(v - lam[:, None] * width_h, 0.0, 1.0), 1)  # noqa: E731
+    over = total(jnp.zeros(v.shape[0], v.dtype)) > cap
+    hi = jnp.full(v.shape[0], 1.0 / jnp.min(width_h), v.dtype)  # λ at which every u is 0
+    lo = jnp.zeros_like(hi)
+
+    def body(_, lh):
+        lo, hi = lh
+        mid = 0.5 * (lo + hi)
+        too_big = total(mid) > cap
+        return jnp.where(too_big, mid, lo), jnp.where(too_big, hi, mid)
+
+    lo, hi = jax.lax.fori_loop(0, n_bisect, body, (lo, hi))
+    vh = jnp.clip(v - hi[:, None] * width_h, 0.0, 1.0)  # the upper end keeps Σ ≤ cap
+    return U.at[:, : config.N_INTERVALS].set(jnp.where(over[:, None], vh, v))
+
+
+# -- the polishing loop ---------------------------------------------------------------------
+
+
+@jax.jit
+def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_best0, x_best0, f_best0, g_best0):
+    """Projected Adam on all rows of U0 (n, d) at once; returns the best qualifying iterate
+    per row (initialised with ``*_best0``; a candidate qualifies when kernel-feasible, with
+    ``T ≤ cap_T`` and jerk < the incumbent)."""
+    lo = jnp.asarray(problem.lower, U0.dtype)
+    width = jnp.asarray(problem.upper, U0.dtype) - lo
+    width_h = width[: config.N_INTERVALS]
+    # Σ w_k u_k ≤ cap_u, a hair inside so that rounding never lifts T above the cap
+    cap_u = cap * (1.0 - 1e-12) - jnp.sum(lo[: config.N_INTERVALS])
+    score_one = jax.vmap(objectives_safe, in_axes=(None, 0))
+
+    def loss(U):
+        X = lo + U * width
+        F, G = score_one(problem, X)
+        viol = jnp.maximum(G + margin, 0.0)
+        per = F[:, 1] / j_scale + mu * jnp.sum(viol, 1) + rho * jnp.sum(viol * viol, 1)
+        return jnp.sum(per), (X, F, G)
+
+    grad_fn = jax.value_and_grad(loss, has_aux=True)
+    opt = optax.scale_by_adam()
+
+    def body(t, carry):
+        U, state, jb, xb, fb, gb = carry
+        (_, (X, F, G)), g = grad_fn(U)
+        ok = jnp.all(G <= 0.0, 1) & (F[:, 0] <= cap) & (F[:, 1] < jb)
+        jb = jnp.where(ok, F[:, 1], jb)
+        xb = jnp.where(ok[:, None], X, xb)
+        fb = jnp.where(ok[:, None], F, fb)
+        gb = jnp.where(ok[:, None], G, gb)
+        g = jnp.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0)
+        upd, state = opt.update(g, state)
+        frac = t / jnp.maximum(steps - 1, 1)
+        rate = lr_final + (lr - lr_final) * 0.5 * (1.0 + jnp.cos(math.pi * frac))
+        U = _project(U - rate * upd, width_h, cap_u)
+        return U, state, jb, xb, fb, gb
+
+    U0 = _project(U0, width_h, cap_u)
+    carry = (U0, opt.init(U0), j_best0, x_best0, f_best0, g_best0)
+    U, _, jb, xb, fb, gb = jax.lax.fori_loop(0, steps + 1, body, carry)
+    return jb, xb, fb, gb
+
+
+def _check_common(problem, steps, learning_rate, penalty, margin):
+    if not isinstance(problem, DockingProblem):
+        raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    for name, v in (("learning_rate", learning_rate), ("penalty", penalty)):
+        if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    if not (isinstance(margin, (int, float, np.floating)) and math.isfinite(margin) and 0 <= margin < 0.5):
+        raise ValueError(f"margin must be in [0, 0.5), got {margin!r}")
+
+
+def _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input):
+    """Shared driver: polish X (n, d) under ``T ≤ cap`` (n,); when keep_input, the input row
+    is the incumbent if kernel-feasible (so only strict jerk improvements are taken)."""
+    with jax.enable_x64(True):
+        Xj = jnp.asarray(X)
+        F0, G0 = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))(problem, Xj)
+        F0, G0 = np.asarray(F0), np.asarray(G0)
+        feas0 = np.all(G0 <= 0, 1) & (F0[:, 0] <= cap)
+        j_scale = np.where(np.isfinite(F0[:, 1]) & (F0[:, 1] > 0), F0[:, 1], 1.0)
+        j0 = np.where(feas0 & keep_input, F0[:, 1], np.inf)
+        lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
+        U0 = np.clip((X - lo) / (hi - lo), 0.0, 1.0)
+        jb, xb, fb, gb = _polish(
+            problem, jnp.asarray(U0), jnp.asarray(cap), jnp.asarray(j_scale), jnp.asarray(int(steps)),
+            jnp.asarray(float(learning_rate)), jnp.asarray(0.01 * float(learning_rate)),
+            jnp.asarray(float(penalty)), jnp.asarray(10.0 * float(penalty)), jnp.asarray(float(margin)),
+            jnp.asarray(j0), Xj, jnp.asarray(F0), jnp.asarray(G0),
+        )
+        return F0, G0, np.asarray(jb), np.asarray(xb), np.asarray(fb), np.asarray(gb)
+
+
+def refine(
+    problem: DockingProblem,
+    X,
+    *,
+    steps: int = 300,
+    learning_rate: float = 0.01,
+    penalty: float = 10.0,
+    margin: float = 1e-4,
+) -> RefineResult:
+    """Polish every row of X (n, n_var) (natural units) by projected Adam in the unit box:
+    minimise jerk with ``T ≤ T_i`` and all 24 limits, see the module docstring.
+
+    ``learning_rate`` is Adam's step in unit-box coordinates, cosine-decayed to 1 % of
+    itself over ``steps``; ``penalty`` the weight μ of the linear penalty ``μ Σ max(G +
+    margin, 0)`` (10 μ for its quadratic part) against the jerk normalised by the input's.
+    Rows outside the box are clipped into it as the starting point (the input row is still
+    returned when nothing better is found). Raises ValueError on bad input.
+    """
+    _check_common(problem, steps, learning_rate, penalty, margin)
+    X = problem.check_population(X)
+    if X.shape[0] == 0:
+        raise ValueError("X must have at least one row")
+    t0 = time.perf_counter()
+    F0, G0, jb, xb, fb, gb = _run(problem, X, X[:, : config.N_INTERVALS].sum(1), steps,
+                                  learning_rate, penalty, margin, keep_input=True)
+    found = np.isfinite(jb) & ~np.all(xb == X, 1)
+    Xo = np.where(found[:, None], xb, X)
+    Fo = np.where(found[:, None], fb, F0)
+    Go = np.where(found[:, None], gb, G0)
+    return RefineResult(
+        X=Xo, F=Fo, G=Go, improved=found, feasible=np.all(Go <= 0, 1), F_in=F0, G_in=G0,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def straight_line(problem: DockingProblem, T) -> np.ndarray:
+    """Decision vectors (len(T), n_var) of straight-line trajectories with equal intervals
+    ``T/6`` (interior control points evenly spaced from start to goal, SPEC §3)."""
+    T = np.atleast_1d(np.asarray(T, dtype=np.float64))
+    h = np.repeat(T[:, None] / config.N_INTERVALS, config.N_INTERVALS, 1)
+    if problem.reduced:
+        return h
+    i = np.arange(1, config.N_FREE + 1)[:, None] / 6.0
+    free = (problem.start + i * (problem.goal - problem.start)).ravel()
+    return np.concatenate([h, np.tile(free, (T.size, 1))], 1)
+
+
+def best_known_front(
+    problem: DockingProblem,
+    *,
+    n_points: int = 20,
+    n_perturbed: int = 2,
+    perturbation: float = 0.05,
+    steps: int = 300,
+    learning_rate: float = 0.01,
+    penalty: float = 10.0,
+    margin: float = 1e-4,
+    seed: int = 0,
+) -> FrontResult:
+    """ε-constraint sweep: for ``n_points`` time caps evenly spaced in ``[6 h_lo, 6 h_hi]``
+    minimise jerk subject to ``T ≤ cap`` and the limits, from the straight line with equal
+    intervals ``cap/6`` and ``n_perturbed`` random perturbations of it (uniform noise of
+    ``± perturbation`` of the box width on the interior control points, the intervals
+    jittered at fixed sum). All starts are polished in one batch by the machinery of
+    :func:`refine`. Returns the feasible non-dominated points found.
+
+    Computed from the problem alone, without seeing any optimiser's front.
+    """
+    _check_common(problem, steps, learning_rate, penalty, margin)
+    if isinstance(n_points, bool) or not isinstance(n_points, (int, np.integer)) or n_points < 2:
+        raise ValueError(f"n_points must be an integer >= 2, got {n_points!r}")
+    if isinstance(n_perturbed, bool) or not isinstance(n_perturbed, (int, np.integer)) or n_perturbed < 0:
+        raise ValueError(f"n_perturbed must be an integer >= 0, got {n_perturbed!r}")
+    if not (math.isfinite(perturbation) and 0 <= perturbation <= 0.5):
+        raise ValueError(f"perturbation must be in [0, 0.5], got {perturbation!r}")
+    t0 = time.perf_counter()
+    h_lo, h_hi = problem.interval_bounds
+    n = config.N_INTERVALS
+    targets = np.linspace(n * h_lo, n * h_hi, int(n_points))
+    rng = np.random.default_rng(seed)
+    starts, caps = [], []
+    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
+    for k in range(int(n_perturbed) + 1):
+        X = straight_line(problem, targets)
+        if k > 0:
+            w = hi - lo
+            noise = rng.uniform(-perturbation, perturbation, X.shape) * w
+            noise[:, :n] -= noise[:, :n].mean(1, keepdims=True)  # keep Σ h
+            X = np.clip(X + noise, lo, hi)
+        starts.append(X)
+        caps.append(targets)
+    X = np.concatenate(starts)
+    cap = np.concatenate(caps)
+    _, _, jb, xb, fb, gb = _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input=True)
+    ok = np.isfinite(jb) & np.all(gb <= 0, 1)
+    Xf, Ff, Gf = xb[ok], fb[ok], gb[ok]
+    keep = np.ones(len(Ff), bool)
+    for i in range(len(Ff)):
+        dom = np.all(Ff <= Ff[i], 1) & np.any(Ff < Ff[i], 1)
+        keep[i] = not dom.any()
+    Xf, Ff, Gf = Xf[keep], Ff[keep], Gf[keep]
+    _, uniq = np.unique(Ff, axis=0, return_index=True)
+    order = uniq[np.argsort(Ff[uniq, 0])]
+    return FrontResult(X=Xf[order], F=Ff[order], G=Gf[order], targets=targets,
+                       seconds=time.perf_counter() - t0)
+
