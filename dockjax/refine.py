@@ -20,7 +20,10 @@ recompile).
   kinks (a maximum over time); that is harmless for a penalty method.
 * The jerk objective (SPEC §5) is recomputed here with a NaN-safe square root (the RMS of a
   joint that does not move has an infinite derivative at 0) and normalised by the input's
-  jerk; any remaining non-finite gradient entry is zeroed.
+  jerk; any remaining non-finite gradient entry is zeroed (this happens at degenerate
+  points of the kernel's extrema search, e.g. coincident control points, where the whole
+  gradient is NaN; such a row is also nudged by a small pseudo-random step, and counted in
+  ``nonfinite_steps``).
 * At every step the current iterate is scored with the problem's own kernel; the best
   iterate that is feasible (every column of the kernel's G ≤ 0, which never understates,
   SPEC §6), has ``T ≤ T_i`` and has the lowest jerk is kept. For a feasible input the
@@ -51,7 +54,7 @@ import optax
 from . import bspline, config
 from .problem import GAUSS_NODES, G_SAFETY, DockingProblem, _maxima, decode, right_jets, span_angles
 
-__all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe"]
+__all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
 
 
 @dataclass(frozen=True)
@@ -61,7 +64,8 @@ class RefineResult:
     ``X`` (n, n_var) the refined points (the input row where nothing was found),
     ``F`` (n, 2) and ``G`` (n, 24) their kernel scores, ``improved`` (n,) True where the
     row differs from the input, ``feasible`` (n,) kernel feasibility of the returned row,
-    ``F_in``/``G_in`` the scores of the input, ``seconds`` wall time (compile included on
+    ``F_in``/``G_in`` the scores of the input, ``nonfinite_steps`` (n,) how many steps had a
+    non-finite gradient entry (zeroed before the update; 0 expected), ``seconds`` wall time (compile included on
     the first call of a shape).
     """
 
@@ -72,6 +76,7 @@ class RefineResult:
     feasible: np.ndarray
     F_in: np.ndarray
     G_in: np.ndarray
+    nonfinite_steps: np.ndarray
     seconds: float
 
 
@@ -175,8 +180,10 @@ def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_b
     opt = optax.scale_by_adam()
 
     def body(t, carry):
-        U, state, jb, xb, fb, gb = carry
+        U, state, jb, xb, fb, gb, nbad = carry
         (_, (X, F, G)), g = grad_fn(U)
+        bad = ~jnp.all(jnp.isfinite(g), 1)
+        nbad = nbad + bad
         ok = jnp.all(G <= 0.0, 1) & (F[:, 0] <= cap) & (F[:, 1] < jb)
         jb = jnp.where(ok, F[:, 1], jb)
         xb = jnp.where(ok[:, None], X, xb)
@@ -186,13 +193,22 @@ def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_b
         upd, state = opt.update(g, state)
         frac = t / jnp.maximum(steps - 1, 1)
         rate = lr_final + (lr - lr_final) * 0.5 * (1.0 + jnp.cos(math.pi * frac))
-        U = _project(U - rate * upd, width_h, cap_u)
-        return U, state, jb, xb, fb, gb
+        # a non-finite gradient (a degenerate point of the kernel's extrema search, e.g.
+        # coincident control points) is zeroed; the row is nudged off the degeneracy
+        nudge = 1e-3 * jnp.sin(12.9898 * (jnp.arange(U.size).reshape(U.shape) + 1.0) * (t + 1.0))
+        U = U - rate * upd + jnp.where(bad[:, None], nudge, 0.0)
+        U = _project(U, width_h, cap_u)
+        return U, state, jb, xb, fb, gb, nbad
 
     U0 = _project(U0, width_h, cap_u)
-    carry = (U0, opt.init(U0), j_best0, x_best0, f_best0, g_best0)
-    U, _, jb, xb, fb, gb = jax.lax.fori_loop(0, steps + 1, body, carry)
-    return jb, xb, fb, gb
+    nbad = jnp.zeros(U0.shape[0], jnp.int32)
+    carry = (U0, opt.init(U0), j_best0, x_best0, f_best0, g_best0, nbad)
+    _, _, jb, xb, fb, gb, nbad = jax.lax.fori_loop(0, steps + 1, body, carry)
+    return jb, xb, fb, gb, nbad
+
+
+_BUCKET = 8
+_score_rows = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))
 
 
 def _check_common(problem, steps, learning_rate, penalty, margin):
@@ -210,22 +226,27 @@ def _check_common(problem, steps, learning_rate, penalty, margin):
 def _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input):
     """Shared driver: polish X (n, d) under ``T ≤ cap`` (n,); when keep_input, the input row
     is the incumbent if kernel-feasible (so only strict jerk improvements are taken)."""
+    n = X.shape[0]
+    pad = -n % _BUCKET  # pad the batch with copies of row 0: fewer distinct shapes to compile
+    X = np.concatenate([X, np.repeat(X[:1], pad, 0)])
+    cap = np.concatenate([cap, np.repeat(cap[:1], pad)])
     with jax.enable_x64(True):
         Xj = jnp.asarray(X)
-        F0, G0 = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))(problem, Xj)
+        F0, G0 = _score_rows(problem, Xj)
         F0, G0 = np.asarray(F0), np.asarray(G0)
         feas0 = np.all(G0 <= 0, 1) & (F0[:, 0] <= cap)
         j_scale = np.where(np.isfinite(F0[:, 1]) & (F0[:, 1] > 0), F0[:, 1], 1.0)
         j0 = np.where(feas0 & keep_input, F0[:, 1], np.inf)
         lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
         U0 = np.clip((X - lo) / (hi - lo), 0.0, 1.0)
-        jb, xb, fb, gb = _polish(
+        jb, xb, fb, gb, nbad = _polish(
             problem, jnp.asarray(U0), jnp.asarray(cap), jnp.asarray(j_scale), jnp.asarray(int(steps)),
             jnp.asarray(float(learning_rate)), jnp.asarray(0.01 * float(learning_rate)),
             jnp.asarray(float(penalty)), jnp.asarray(10.0 * float(penalty)), jnp.asarray(float(margin)),
             jnp.asarray(j0), Xj, jnp.asarray(F0), jnp.asarray(G0),
         )
-        return F0, G0, np.asarray(jb), np.asarray(xb), np.asarray(fb), np.asarray(gb)
+        out = (F0, G0, np.asarray(jb), np.asarray(xb), np.asarray(fb), np.asarray(gb), np.asarray(nbad))
+    return tuple(a[:n] for a in out)
 
 
 def refine(
@@ -233,7 +254,7 @@ def refine(
     X,
     *,
     steps: int = 300,
-    learning_rate: float = 0.01,
+    learning_rate: float = 0.05,
     penalty: float = 10.0,
     margin: float = 1e-4,
 ) -> RefineResult:
@@ -251,7 +272,7 @@ def refine(
     if X.shape[0] == 0:
         raise ValueError("X must have at least one row")
     t0 = time.perf_counter()
-    F0, G0, jb, xb, fb, gb = _run(problem, X, X[:, : config.N_INTERVALS].sum(1), steps,
+    F0, G0, jb, xb, fb, gb, nbad = _run(problem, X, X[:, : config.N_INTERVALS].sum(1), steps,
                                   learning_rate, penalty, margin, keep_input=True)
     found = np.isfinite(jb) & ~np.all(xb == X, 1)
     Xo = np.where(found[:, None], xb, X)
@@ -259,6 +280,7 @@ def refine(
     Go = np.where(found[:, None], gb, G0)
     return RefineResult(
         X=Xo, F=Fo, G=Go, improved=found, feasible=np.all(Go <= 0, 1), F_in=F0, G_in=G0,
+        nonfinite_steps=nbad,
         seconds=time.perf_counter() - t0,
     )
 
@@ -282,7 +304,7 @@ def best_known_front(
     n_perturbed: int = 2,
     perturbation: float = 0.05,
     steps: int = 300,
-    learning_rate: float = 0.01,
+    learning_rate: float = 0.05,
     penalty: float = 10.0,
     margin: float = 1e-4,
     seed: int = 0,
@@ -321,7 +343,7 @@ def best_known_front(
         caps.append(targets)
     X = np.concatenate(starts)
     cap = np.concatenate(caps)
-    _, _, jb, xb, fb, gb = _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input=True)
+    _, _, jb, xb, fb, gb, _ = _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input=True)
     ok = np.isfinite(jb) & np.all(gb <= 0, 1)
     Xf, Ff, Gf = xb[ok], fb[ok], gb[ok]
     keep = np.ones(len(Ff), bool)

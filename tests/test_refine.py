@@ -1,0 +1,126 @@
+"""Gradient polishing and the best-known front (dockjax.refine), checked against the
+independent dense reference (tests/reference.py) and the problem's own kernel."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from dockjax import DockingProblem
+from dockjax.metrics import hypervolume
+from dockjax.refine import best_known_front, refine, straight_line
+from tests.reference import dense_check
+
+HV_REF = (61.0, 20.0)
+STEPS = 150
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return DockingProblem()
+
+
+@pytest.fixture(scope="module")
+def imocs_front(problem):
+    from dockjax.algorithms import optimize
+
+    r = optimize("imocs", problem, seeds=[0], pop_size=16, n_iter=5)
+    m = r.front[0]
+    return r.X[0][m], r.F[0][m]
+
+
+@pytest.fixture(scope="module")
+def refined(problem, imocs_front):
+    X, _ = imocs_front
+    return refine(problem, X[:8], steps=STEPS)
+
+
+def _hv(F, valid=None):
+    with jax.enable_x64(True):
+        return float(hypervolume(jnp.asarray(F), HV_REF, valid=None if valid is None else jnp.asarray(valid)))
+
+
+def test_gradients_stay_finite(refined):
+    assert np.all(refined.nonfinite_steps == 0)
+
+
+def test_safe_objective_matches_kernel(problem, imocs_front, refined):
+    # F_in/G_in come from the NaN-safe objective of refine.py; the kernel must agree
+    F_ref, G_ref = problem.evaluate(imocs_front[0][:8])
+    np.testing.assert_allclose(refined.F_in, F_ref, rtol=1e-13)
+    np.testing.assert_allclose(refined.G_in, G_ref, rtol=0, atol=1e-13)
+
+
+def test_refined_points_dominate_or_equal_inputs_and_are_dense_feasible(problem, imocs_front, refined):
+    X_in = imocs_front[0][:8]
+    F_in, _ = problem.evaluate(X_in)
+    F, G = problem.evaluate(refined.X)
+    np.testing.assert_allclose(F, refined.F, rtol=1e-12)
+    assert refined.X.shape == X_in.shape
+    # never dominated by the input: T no longer and jerk no higher
+    assert np.all(F[:, 0] <= F_in[:, 0])
+    assert np.all(F[:, 1] <= F_in[:, 1])
+    assert np.all(np.where(refined.improved, F[:, 1] < F_in[:, 1], np.all(refined.X == X_in, 1)))
+    # the inputs are feasible, so the outputs are too: kernel and the independent dense check
+    assert np.all(G <= 0) and np.all(refined.feasible)
+    Gd, feas = dense_check(problem, refined.X, n_samples=4001)
+    assert np.all(feas), Gd.max(1)
+    assert np.all((refined.X >= problem.lower) & (refined.X <= problem.upper))
+    assert refined.improved.sum() >= 6
+
+
+def test_refine_raises_hypervolume_of_short_imocs_run(problem, imocs_front, refined):
+    _, F_front = imocs_front
+    hv_in = _hv(F_front)
+    F_all = np.vstack([F_front, refined.F])
+    assert _hv(F_all) > hv_in
+    assert _hv(refined.F) > _hv(F_front[:8])
+
+
+def test_best_known_front_is_feasible_and_beats_short_imocs(problem, imocs_front):
+    front = best_known_front(problem, n_points=6, n_perturbed=0, steps=STEPS)
+    assert len(front.F) >= 3
+    F, G = problem.evaluate(front.X)
+    np.testing.assert_allclose(F, front.F, rtol=1e-12)
+    assert np.all(G <= 0)
+    Gd, feas = dense_check(problem, front.X, n_samples=4001)
+    assert np.all(feas), Gd.max(1)
+    assert np.all(np.diff(front.F[:, 0]) > 0) and np.all(np.diff(front.F[:, 1]) < 0)
+    assert _hv(front.F) >= _hv(imocs_front[1])
+
+
+def test_infeasible_input_is_repaired_or_returned_unchanged(problem):
+    X = straight_line(problem, [21.0, 60.0])
+    X[1, 6:] = problem.upper[6:]  # a wild detour
+    r = refine(problem, X, steps=20)
+    # the corner of the box is a degenerate point of the kernel (NaN gradient): it is
+    # nudged off it, so not every step is wasted
+    assert r.nonfinite_steps[0] == 0 and r.nonfinite_steps[1] < 21
+    for i in range(2):
+        if r.improved[i]:
+            assert r.feasible[i] and r.F[i, 0] <= X[i, :6].sum()
+        else:
+            assert np.all(r.X[i] == X[i])
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [({"steps": 0}, "steps"), ({"learning_rate": -1.0}, "learning_rate"),
+     ({"penalty": float("nan")}, "penalty"), ({"margin": 0.7}, "margin")],
+)
+def test_refine_rejects_bad_arguments(problem, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        refine(problem, straight_line(problem, [30.0]), **kwargs)
+
+
+def test_refine_rejects_bad_population(problem):
+    with pytest.raises(ValueError):
+        refine(problem, np.zeros((2, 5)))
+    x = straight_line(problem, [30.0])
+    x[0, 3] = np.nan
+    with pytest.raises(ValueError):
+        refine(problem, x)
+    with pytest.raises(ValueError, match="n_points"):
+        best_known_front(problem, n_points=1)
