@@ -52,13 +52,17 @@ def main(args: Args) -> int:
         errors.append("--presets must name at least one preset")
     if not args.algorithms:
         errors.append("--algorithms must name at least one algorithm")
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-        probe = args.out / ".write-test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as exc:
-        errors.append(f"--out {args.out} cannot be written: {exc}")
+    if not errors:
+        created = not args.out.exists()
+        try:
+            args.out.mkdir(parents=True, exist_ok=True)
+            probe = args.out / ".write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as exc:
+            errors.append(f"--out {args.out} cannot be written: {exc}")
+            if created and args.out.is_dir() and not any(args.out.iterdir()):
+                args.out.rmdir()
     if errors:
         print("error: " + "; ".join(errors), file=sys.stderr)
         return 2
