@@ -127,6 +127,8 @@ class PlanArgs:
     """Optimiser iterations."""
     seed: int = 0
     """Random seed."""
+    refine: bool = True
+    """Polish the optimiser's front with gradient refinement (dockjax.refine) before choosing."""
     out: Path = Path("plan")
     """Output folder."""
 
@@ -160,7 +162,8 @@ def plan_cmd(args: PlanArgs) -> int:
         return bad(f"--out {args.out} exists and is not a folder")
     enable_compilation_cache()
     try:
-        p = plan(problem, weights=weights, rate=args.rate, pop_size=args.pop, n_iter=args.iters, seed=args.seed)
+        p = plan(problem, weights=weights, rate=args.rate, pop_size=args.pop, n_iter=args.iters,
+                 seed=args.seed, refine=args.refine)
     except PlanError as exc:
         print(f"no plan: {exc}", file=sys.stderr)
         return 1

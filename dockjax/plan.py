@@ -106,8 +106,11 @@ def _sample_violation(problem: DockingProblem, s: dict) -> tuple[float, str]:
 
 
 def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: float = 1000.0,
-         pop_size: int = 150, n_iter: int = 100, seed: int = 0, algorithm: str = "imocs") -> Plan:
-    """Optimise, choose by Eq. 26 with ``weights`` (w_T, w_jerk), certify, and return a Plan.
+         pop_size: int = 150, n_iter: int = 100, seed: int = 0, algorithm: str = "imocs",
+         refine: bool = True, refine_steps: int = 300) -> Plan:
+    """Optimise, polish the front with gradient refinement (:mod:`dockjax.refine`, unless
+    ``refine=False``), choose by Eq. 26 with ``weights`` (w_T, w_jerk), certify, and return
+    a Plan.
 
     Raises ValueError on bad input (before any compilation) and :class:`PlanError` when no
     candidate can meet the limits.
@@ -132,6 +135,17 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     F, X = res.F[0][m], res.X[0][m]
     F, idx = np.unique(F, axis=0, return_index=True)
     X = X[idx]
+    if refine:
+        from .refine import refine as polish
+
+        r = polish(problem, X, steps=refine_steps)
+        keep = r.feasible
+        X = np.concatenate([X, r.X[keep & r.improved]])
+        F = np.concatenate([F, r.F[keep & r.improved]])
+        nd = np.array([not np.any(np.all(F <= f, 1) & np.any(F < f, 1)) for f in F])
+        F, X = F[nd], X[nd]
+        F, idx = np.unique(F, axis=0, return_index=True)
+        X = X[idx]
     order = np.argsort(-np.asarray(select.satisfaction(F, w)), kind="stable")
     worst = (np.inf, "")
     for j in order:
@@ -141,7 +155,8 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
         g = problem.evaluate(X[j][None])[1][0]
         if v <= 0 and np.all(g <= 0):
             settings = {"weights": list(map(float, w)), "rate": float(rate), "pop_size": pop_size,
-                        "n_iter": n_iter, "seed": seed, "algorithm": algorithm}
+                        "n_iter": n_iter, "seed": seed, "algorithm": algorithm,
+                        "refine": bool(refine), "refine_steps": int(refine_steps)}
             return Plan(problem, traj, X[j], float(F[j, 0]), float(F[j, 1]), F[np.argsort(F[:, 0])],
                         s, float(rate), tuple(w), settings)
         worst = min(worst, (max(v, float(g.max())), name))
@@ -171,7 +186,8 @@ def write_plan(p: Plan, out: str | Path) -> list[Path]:
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     files.append(out / "summary.json")
-    files.append(plots.plot_fronts({"imocs": p.front}, out / "front.png", highlight=(p.T, p.jerk),
+    label = "imocs+refine" if p.settings.get("refine") else "imocs"
+    files.append(plots.plot_fronts({label: p.front}, out / "front.png", highlight=(p.T, p.jerk),
                                    title=f"front and chosen point (T = {p.T:.2f} s)"))
     s = p.samples
     files.append(plots.plot_joints(s, p.problem.limits, out / "trajectory.png",

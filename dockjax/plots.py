@@ -21,7 +21,8 @@ from . import config  # noqa: E402
 __all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence"]
 
 COLORS = {"imocs": "C3", "mocs": "C1", "nsga2": "C0", "mopso": "C2", "imocs+refine": "C4"}
-LABELS = {"imocs": "IMOCS", "mocs": "MOCS", "nsga2": "NSGA-II", "mopso": "MOPSO"}
+LABELS = {"imocs": "IMOCS", "mocs": "MOCS", "nsga2": "NSGA-II", "mopso": "MOPSO",
+          "imocs+refine": "IMOCS + refine"}
 
 
 def save(fig, path: str | os.PathLike) -> Path:

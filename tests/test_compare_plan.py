@@ -70,6 +70,7 @@ def test_compare_rejects_bad_input_with_exit_2(tmp_path):
 
 
 PLAN_ARGS = ["--pop", "16", "--iters", "8", "--rate", "200"]
+NO_REFINE = ["--no-refine"]
 
 
 @pytest.fixture(scope="module")
@@ -108,6 +109,7 @@ def test_plan_writes_four_files_and_a_controller_ready_csv(plan_out):
     assert np.max(np.abs(fd - joints[1:-2, :, 1]) / scale) < 1e-3
     for name, j in summary["joints"].items():
         assert j["velocity_margin"] >= 0 and j["acceleration_margin"] >= 0 and j["travel_margin"] >= 0
+    assert summary["settings"]["refine"] is True
 
 
 def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path):
@@ -115,7 +117,7 @@ def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path)
     limits.write_text(json.dumps({"velocity": [400, 25, 0.4, 6.8]}))
     out = tmp_path / "out"
     out.mkdir()
-    r = _run([str(SCRIPT), "plan", *PLAN_ARGS, "--limits", str(limits), "--out", str(out)])
+    r = _run([str(SCRIPT), "plan", *PLAN_ARGS, *NO_REFINE, "--limits", str(limits), "--out", str(out)])
     assert r.returncode == 1, r.stderr[-2000:]
     assert "velocity" in r.stderr and ("d_L3" in r.stderr or "d_R3" in r.stderr)
     assert list(out.iterdir()) == []
@@ -152,6 +154,6 @@ def test_plan_limits_file_with_a_negative_limit_exits_2(tmp_path):
 def test_python_api_returns_the_certified_trajectory_as_arrays():
     from dockjax.plan import plan
 
-    p = plan(weights=(1, 0), pop_size=12, n_iter=4, rate=50)
+    p = plan(weights=(1, 0), pop_size=12, n_iter=4, rate=50, refine=False)
     assert p.samples["position"].shape == (len(p.samples["t"]), 8)
     assert math.isclose(p.samples["t"][-1], p.T)
