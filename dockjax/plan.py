@@ -20,7 +20,8 @@ import numpy as np
 from . import __version__, config, select
 from .algorithms import optimize
 from .problem import DockingProblem
-from .trajectory import Trajectory, atomic_write_text
+from .io import atomic_write_text
+from .trajectory import Trajectory
 
 __all__ = ["PlanError", "Plan", "plan", "load_limits", "write_plan"]
 

@@ -7,7 +7,6 @@ the path.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -17,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import config  # noqa: E402
+from .io import atomic_write  # noqa: E402
 
 __all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence"]
 
@@ -26,21 +26,11 @@ LABELS = {"imocs": "IMOCS", "mocs": "MOCS", "nsga2": "NSGA-II", "mopso": "MOPSO"
 
 
 def save(fig, path: str | os.PathLike) -> Path:
-    """Save a figure atomically (temporary file in the same folder, then rename)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
-    os.close(fd)
+    """Save a figure as PNG atomically and close it."""
     try:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight")
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
+        return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=120, bbox_inches="tight"))
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
 
 
 def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title="", highlight=None) -> Path:

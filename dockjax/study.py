@@ -19,7 +19,7 @@ import numpy as np
 from . import config, metrics, plots, select
 from .algorithms import Result, optimize
 from .problem import DockingProblem
-from .trajectory import atomic_write_text
+from .io import atomic_savez, atomic_write_text
 
 __all__ = ["PRESETS", "make_problem", "hv_reference", "run_study", "Study", "write_study"]
 
@@ -183,9 +183,7 @@ def write_study(study: Study, out: Path) -> list[Path]:
         raw.update({f"{n}_X": r.X, f"{n}_F": r.F, f"{n}_G": r.G, f"{n}_front": r.front,
                     f"{n}_seeds": r.seeds, f"{n}_history": r.history})
     raw["reference_front"] = study.reference_front
-    tmp = folder / ".raw.tmp.npz"
-    np.savez_compressed(tmp, **raw)
-    tmp.replace(folder / "raw.npz")
+    atomic_savez(folder / "raw.npz", raw, compressed=True)
     written.append(folder / "raw.npz")
     # Table 3 and Table 4 analogues
     i = median_run(study, "imocs") if "imocs" in study.results else 0

@@ -88,6 +88,8 @@ from typing import Any, Callable, Iterable, Iterator, Literal
 
 import numpy as np
 
+from .io import atomic_savez, atomic_write_text
+
 __all__ = [
     "SweepArgs",
     "SweepConfig",
@@ -311,45 +313,18 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None) -> dict[str, np.nd
 
 
 # ------------------------------------------------------------------------------- files
-def _umask_mode(path: Path) -> None:
-    """Give a file written through mkstemp (mode 0600) the usual mode (0666 & ~umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(path, 0o666 & ~mask)
-
-
-def _atomic_write(path: Path, write: Callable) -> None:
-    """``write(binary file)`` into a temporary file in the same folder, fsync, os.replace:
-    the file at ``path`` is either the previous one or the complete new one."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        _umask_mode(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    _atomic_write(path, lambda fh: np.savez(fh, **arrays))
+    atomic_savez(path, arrays)
 
 
 def _atomic_text(path: Path, text: str) -> None:
-    _atomic_write(path, lambda fh: fh.write(text.encode()))
+    atomic_write_text(path, text)
 
 
 def _save_figure(fig, path: Path) -> Path:
     from .plots import save
 
-    save(fig, path)
-    _umask_mode(path)
-    return path
+    return save(fig, path)
 
 
 def _load_npz(path: Path) -> dict[str, np.ndarray]:

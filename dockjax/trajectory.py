@@ -9,7 +9,6 @@ Taylor-mode arithmetic, :mod:`dockjax.jets`).
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import jax
@@ -17,35 +16,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import bspline, config, jets
+from .io import atomic_write_text
 from .problem import _DEG, DockingProblem, decode
 
 __all__ = ["Trajectory", "atomic_write_text"]
 
 _SUFFIX = ("", "_vel", "_acc", "_jerk")
 _UNIT_POWER = ("", "/s", "/s^2", "/s^3")
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write a text file atomically: a temporary file in the same folder, then a rename."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 @jax.jit
