@@ -166,6 +166,20 @@ def nondominated_mask(
     return keep
 
 
+def nondominated_points(F, /, *, return_index: bool = False):
+    """Distinct non-dominated rows of a 2-objective set F (k, 2), sorted by the first
+    objective (NumPy; O(k log k): sort, then keep rows whose second objective beats every
+    earlier one). With ``return_index``, also the indices of those rows in F."""
+    F = np.asarray(F, dtype=np.float64).reshape(-1, 2)
+    U, idx = np.unique(F, axis=0, return_index=True)  # sorted by f0, then f1
+    if len(U):
+        best = np.minimum.accumulate(U[:, 1])
+        keep = np.ones(len(U), bool)
+        keep[1:] = U[1:, 1] < best[:-1]
+        U, idx = U[keep], idx[keep]
+    return (U, idx) if return_index else U
+
+
 def onvg(F: jax.Array, /, *, valid: jax.Array | None = None) -> jax.Array:
     """Overall non-dominated vector generation: distinct non-dominated valid points.
 

@@ -21,6 +21,7 @@ from . import __version__, config, select
 from .algorithms import optimize
 from .problem import DockingProblem
 from .io import atomic_write_text
+from .metrics import nondominated_points
 from .trajectory import Trajectory
 
 __all__ = ["PlanError", "Plan", "plan", "load_limits", "write_plan"]
@@ -134,7 +135,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
             f"{6 * problem.interval_bounds[1]:g} s with interval bounds {problem.interval_bounds})"
         )
     F, X = res.F[0][m], res.X[0][m]
-    F, idx = np.unique(F, axis=0, return_index=True)
+    F, idx = nondominated_points(F, return_index=True)
     X = X[idx]
     if refine:
         from .refine import refine as polish
@@ -142,10 +143,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
         r = polish(problem, X, steps=refine_steps)
         keep = r.feasible
         X = np.concatenate([X, r.X[keep & r.improved]])
-        F = np.concatenate([F, r.F[keep & r.improved]])
-        nd = np.array([not np.any(np.all(F <= f, 1) & np.any(F < f, 1)) for f in F])
-        F, X = F[nd], X[nd]
-        F, idx = np.unique(F, axis=0, return_index=True)
+        F, idx = nondominated_points(np.concatenate([F, r.F[keep & r.improved]]), return_index=True)
         X = X[idx]
     order = np.argsort(-np.asarray(select.satisfaction(F, w)), kind="stable")
     worst = (np.inf, "")

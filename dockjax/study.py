@@ -62,16 +62,6 @@ class Study:
     seconds: float
 
 
-def _nondominated(F: np.ndarray) -> np.ndarray:
-    F = np.unique(F, axis=0)
-    keep = np.ones(len(F), bool)
-    for i in range(len(F)):
-        dom = np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1)
-        keep[i] = not dom.any()
-    out = F[keep]
-    return out[np.argsort(out[:, 0])]
-
-
 def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), seeds=range(31),
               pop_size: int = 150, n_iter: int = 100, log=print) -> Study:
     """Run every algorithm for every seed and score them (SPEC §8)."""
@@ -86,7 +76,7 @@ def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), se
         log(f"[{preset}] {name}: {len(r)} runs in {r.seconds:.1f} s (compile included)")
         results[name] = r
     union = np.concatenate([f for r in results.values() for f in r.fronts() if len(f)] or [np.zeros((0, 2))])
-    ref_front = _nondominated(union) if len(union) else union
+    ref_front = metrics.nondominated_points(union)
     ideal, nadir = ref_front.min(0), ref_front.max(0)
     per_run = {}
     for name, r in results.items():

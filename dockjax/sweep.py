@@ -256,14 +256,10 @@ def _problem(preset: str):
 
 
 def _nondominated_2d(F: np.ndarray) -> np.ndarray:
-    """Distinct non-dominated rows of (k, 2) F (minimisation), sorted by the first column."""
-    F = np.unique(np.asarray(F, dtype=np.float64).reshape(-1, 2), axis=0)  # sorted by f0, f1
-    if len(F) == 0:
-        return F
-    best = np.minimum.accumulate(F[:, 1])
-    keep = np.ones(len(F), bool)
-    keep[1:] = F[1:, 1] < best[:-1]
-    return F[keep]
+    """Distinct non-dominated rows of (k, 2) F, sorted by the first column."""
+    from .metrics import nondominated_points
+
+    return nondominated_points(F)
 
 
 def run_chunk(spec: ChunkSpec, reference: dict | None = None) -> dict[str, np.ndarray]:
