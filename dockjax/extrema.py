@@ -123,6 +123,13 @@ def chain_extrema(c, h):
     derivative respectively (the last in closed form), each root within its width of the
     true one.
     """
+    # The critical times carry no gradient (envelope theorem: at an interior root of Q' the
+    # derivative of Q(τ*) with respect to the coefficients is ∂Q/∂c at τ*). So the root
+    # searches run on constants: the backward pass never enters the Newton loops (cheaper,
+    # and no 0·∞ at a double root). Times equal to the span end get h back, with its
+    # gradient (the end of a span moves with h).
+    h_in = h
+    c, h = jax.lax.stop_gradient(c), jax.lax.stop_gradient(h)
     zero = jnp.zeros_like(h)
     v = poly_derivative(c)
     a = poly_derivative(v)
@@ -135,10 +142,11 @@ def chain_extrema(c, h):
     vr, vw = roots_in_brackets(v, v_edges)  # (..., 4)
     t_edges = jnp.concatenate([ends_lo, vr, ends_hi], axis=-1)  # (..., 6)
     pad = jnp.zeros_like(ends_lo)
+    end = lambda t: jnp.where(t == h[..., None], h_in[..., None], t)  # noqa: E731
     return (
-        (t_edges, jnp.concatenate([pad, vw, pad], -1)),
-        (v_edges, jnp.concatenate([pad, aw, pad], -1)),
-        a_edges,
+        (end(t_edges), jnp.concatenate([pad, vw, pad], -1)),
+        (end(v_edges), jnp.concatenate([pad, aw, pad], -1)),
+        end(a_edges),
     )
 
 
@@ -160,7 +168,8 @@ def span_maxima(c, h):
     d = [c] + [poly_derivative(c, k) for k in range(1, 4)]
     amax = jnp.max(jnp.abs(_at(d[2], at)), -1)
     jpeak, _ = _safe_div(-d[3][..., 1], 2.0 * d[3][..., 2])  # vertex of the quadratic jerk
-    jt = jnp.stack([jnp.zeros_like(h), h, jnp.clip(jpeak, 0.0, h)], -1)
+    jpeak = jax.lax.stop_gradient(jnp.clip(jpeak, 0.0, h))  # envelope theorem, as above
+    jt = jnp.stack([jnp.zeros_like(h), h, jpeak], -1)
     jmax = jnp.max(jnp.abs(_at(d[3], jt)), -1)
     vmax = jnp.max(
         jnp.abs(_at(d[1], vt)) + jnp.abs(_at(d[2], vt)) * vw + 0.5 * jmax[..., None] * vw * vw, -1

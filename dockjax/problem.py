@@ -400,7 +400,10 @@ def _right_remainder_bounds(problem: DockingProblem, c, h, ref):
     dev = jnp.sum(jnp.abs(ang[..., 1:]) * half[..., None] ** m[1:], -1)  # (6, 2)
     vel = jnp.sum(jnp.abs(ang[..., 1:]) * m[1:] * powers[..., 1:], -1)
     acc = jnp.sum(jnp.abs(ang[..., 2:]) * (m[2:] * (m[2:] - 1)) * half[..., None] ** (m[2:] - 2), -1)
-    norm = lambda v: jnp.sqrt(jnp.sum(v * v, -1))  # noqa: E731
+    def norm(v):  # Euclidean norm with a finite gradient (0) at 0
+        s = jnp.sum(v * v, -1)
+        return jnp.where(s > 0, jnp.sqrt(jnp.where(s > 0, s, 1.0)), 0.0)
+
     sin_bound = jnp.minimum(1.0, jnp.abs(sin_m) + dev)  # (6, 2)
     hess = _hessian_norms(sin_bound[:, 0], sin_bound[:, 1])  # (6, 3)
     return _remainder_bound(problem.arm_distance, hess, norm(dev), norm(vel), norm(acc))
@@ -423,7 +426,9 @@ def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 4):
         first = pick(d, 0)
         for _ in range(newton):
             q1, q2 = pick(d, 1), pick(d, 2)
-            pts = jnp.clip(pts - jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0), 0.0, h[:, None])
+            # the points carry no gradient (envelope theorem, see extrema.chain_extrema)
+            pts = jax.lax.stop_gradient(
+                jnp.clip(pts - jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0), 0.0, h[:, None]))
             d = jet_at(pts)
         q0, q1, q2 = pick(d, 0), pick(d, 1), pick(d, 2)
         step = jnp.abs(jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0))

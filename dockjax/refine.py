@@ -20,10 +20,11 @@ recompile).
   kinks (a maximum over time); that is harmless for a penalty method.
 * The jerk objective (SPEC §5) is recomputed here with a NaN-safe square root (the RMS of a
   joint that does not move has an infinite derivative at 0) and normalised by the input's
-  jerk; any remaining non-finite gradient entry is zeroed (this happens at degenerate
-  points of the kernel's extrema search, e.g. coincident control points, where the whole
-  gradient is NaN; such a row is also nudged by a small pseudo-random step, and counted in
-  ``nonfinite_steps``).
+  jerk. The kernel's critical times carry no gradient (envelope theorem, see
+  :func:`dockjax.extrema.chain_extrema`), so the backward pass never enters the root
+  searches and stays finite at degenerate points (coincident control points, double
+  roots). As a safeguard, a non-finite gradient entry would be zeroed, the row nudged by
+  a small pseudo-random step, and the step counted in ``nonfinite_steps`` (0 expected).
 * At every step the current iterate is scored with the problem's own kernel; the best
   iterate that is feasible (every column of the kernel's G ≤ 0, which never understates,
   SPEC §6), has ``T ≤ T_i`` and has the lowest jerk is kept. For a feasible input the
