@@ -47,6 +47,7 @@ from .pareto import constrained_dominance
 __all__ = [
     "gd",
     "hypervolume",
+    "hypervolume_numpy",
     "igd",
     "igd_plus",
     "indicator_values",
@@ -298,6 +299,13 @@ def hypervolume(F: jax.Array, /, ref: Any, *, valid: jax.Array | None = None) ->
         raise ValueError(f"hypervolume is implemented for 2 objectives, got {F.shape[1]}")
     ref = jnp.broadcast_to(jnp.asarray(ref, dtype=F.dtype), (2,))
     return hypervolume_2d(F, valid, ref)
+
+
+def hypervolume_numpy(F, ref) -> float:
+    """NumPy in, float out: :func:`hypervolume` of a (n, 2) set in float64 (inside
+    ``jax.enable_x64``; no global flag is changed), in the units of F."""
+    with jax.enable_x64(True):
+        return float(hypervolume(jnp.asarray(np.asarray(F, dtype=np.float64)), np.asarray(ref, dtype=np.float64)))
 
 
 # ---------------------------------------------------------------------- all at once

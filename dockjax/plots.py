@@ -33,13 +33,14 @@ def save(fig, path: str | os.PathLike) -> Path:
         plt.close(fig)
 
 
-def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title="", highlight=None) -> Path:
+def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title="", highlight=None,
+                reference_label="reference front") -> Path:
     """All algorithms' fronts in one plot (the paper's Fig. 12). fronts: name → (k, 2);
     ``highlight``: one (T, jerk) point to mark (e.g. the chosen trajectory)."""
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     if reference is not None and len(reference):
         r = reference[np.argsort(reference[:, 0])]
-        ax.plot(r[:, 0], r[:, 1], "-", color="0.6", lw=1, label="reference front")
+        ax.plot(r[:, 0], r[:, 1], "-", color="0.4", lw=1.2, label=reference_label)
     for name, f in fronts.items():
         if len(f):
             ax.plot(f[:, 0], f[:, 1], "o", ms=3, color=COLORS.get(name), label=LABELS.get(name, name))

@@ -208,7 +208,8 @@ def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_b
     return jb, xb, fb, gb, nbad
 
 
-_BUCKET = 8
+_BUCKET = 16
+_CHUNK = 256
 _score_rows = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))
 
 
@@ -224,11 +225,30 @@ def _check_common(problem, steps, learning_rate, penalty, margin):
         raise ValueError(f"margin must be in [0, 0.5), got {margin!r}")
 
 
+def _bucket(n: int) -> int:
+    """Rows per compiled call: 16, 32, then multiples of 32 up to :data:`_CHUNK` (larger
+    batches go in chunks of _CHUNK), so a handful of shapes is ever compiled and padding
+    wastes little."""
+    if n <= 32:
+        return max(_BUCKET, 1 << (int(n) - 1).bit_length())
+    return min(_CHUNK, -(-int(n) // 32) * 32)
+
+
 def _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input):
-    """Shared driver: polish X (n, d) under ``T ≤ cap`` (n,); when keep_input, the input row
-    is the incumbent if kernel-feasible (so only strict jerk improvements are taken)."""
+    """Shared driver: polish X (n, d) under ``T ≤ cap`` (n,), in chunks of one compiled
+    shape (:func:`_bucket`); see :func:`_run_chunk`."""
     n = X.shape[0]
-    pad = -n % _BUCKET  # pad the batch with copies of row 0: fewer distinct shapes to compile
+    size = _bucket(n)
+    parts = [_run_chunk(problem, X[i:i + size], cap[i:i + size], size, steps, learning_rate, penalty,
+                        margin, keep_input) for i in range(0, n, size)]
+    return tuple(np.concatenate(a) for a in zip(*parts))
+
+
+def _run_chunk(problem, X, cap, size, steps, learning_rate, penalty, margin, keep_input):
+    """Polish X (n ≤ size, d) under ``T ≤ cap`` (n,); when keep_input, the input row is the
+    incumbent if kernel-feasible (so only strict jerk improvements are taken)."""
+    n = X.shape[0]
+    pad = size - n  # pad the batch with copies of row 0: one compiled shape per bucket
     X = np.concatenate([X, np.repeat(X[:1], pad, 0)])
     cap = np.concatenate([cap, np.repeat(cap[:1], pad)])
     with jax.enable_x64(True):
@@ -254,7 +274,7 @@ def refine(
     problem: DockingProblem,
     X,
     *,
-    steps: int = 300,
+    steps: int = 200,
     learning_rate: float = 0.05,
     penalty: float = 10.0,
     margin: float = 1e-4,

@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from . import config, metrics, plots, select
-from .algorithms import Result, optimize
-from .problem import DockingProblem
+from .algorithms import Result, optimize, refine_result
 from .io import atomic_savez, atomic_write_text
+from .problem import DockingProblem
+from .refine import FrontResult, best_known_front
 
-__all__ = ["PRESETS", "make_problem", "hv_reference", "run_study", "Study", "write_study"]
+__all__ = ["PRESETS", "BEST_KNOWN", "make_problem", "hv_reference", "best_known_cached", "run_study", "Study", "write_study"]
 
 PRESETS = {
     "paper": dict(interval_bounds=(3.5, 10.0)),
@@ -30,7 +31,7 @@ PRESETS = {
 """``paper``: h ∈ [3.5, 10] s (SPEC §3). ``wide``: h ∈ [0.5, 10] s, where the velocity limits
 rather than the interval bounds decide the fast end of the front."""
 
-INDICATORS = ("ONVG", "GD", "SP", "IGD", "HV")
+INDICATORS = ("ONVG", "GD", "SP", "IGD", "HV", "HV_fraction")
 TYPES = ("compromise", "time", "smooth")
 
 
@@ -60,11 +61,51 @@ class Study:
     nadir: np.ndarray
     per_run: dict[str, dict[str, np.ndarray]]
     seconds: float
+    reference_kind: str = "union"
+    """``"best-known"`` (the independent front of :func:`dockjax.refine.best_known_front`) or
+    ``"union"`` (non-dominated union of every final feasible set, SPEC §8)."""
+    best_known: FrontResult | None = None
+
+    @property
+    def reference_description(self) -> str:
+        if self.reference_kind == "best-known":
+            return (f"best-known front ({len(self.reference_front)} points: ε-constraint sweep of T with "
+                    f"gradient refinement, computed without the algorithms' fronts)")
+        return (f"non-dominated union of every final feasible set ({len(self.reference_front)} points)")
+
+
+BEST_KNOWN = dict(n_points=150, n_perturbed=0, steps=600)
+"""Settings of the best-known front used as the reference of ``experiments/compare.py``."""
+
+
+def best_known_cached(problem: DockingProblem, path: Path | None = None, log=print, **settings) -> FrontResult:
+    """:func:`dockjax.refine.best_known_front` of ``problem`` (settings default to
+    :data:`BEST_KNOWN`), reused from ``path`` (an ``.npz``) when that file was written for
+    the same problem and settings, else computed and written there atomically."""
+    settings = {**BEST_KNOWN, **settings}
+    key = json.dumps({"problem": repr(problem), **settings}, sort_keys=True)
+    if path is not None and Path(path).exists():
+        with np.load(path) as d:
+            if str(d["key"]) == key:
+                return FrontResult(X=d["X"], F=d["F"], G=d["G"], targets=d["targets"], seconds=float(d["seconds"]))
+    front = best_known_front(problem, **settings)
+    log(f"best-known front: {len(front.F)} points in {front.seconds:.1f} s (compile included)")
+    if path is not None:
+        atomic_savez(path, {"X": front.X, "F": front.F, "G": front.G, "targets": front.targets,
+                            "seconds": front.seconds, "key": np.array(key)})
+    return front
 
 
 def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), seeds=range(31),
-              pop_size: int = 150, n_iter: int = 100, log=print) -> Study:
-    """Run every algorithm for every seed and score them (SPEC §8)."""
+              pop_size: int = 150, n_iter: int = 100, refine_steps: int = 0,
+              best_known: FrontResult | None = None, log=print) -> Study:
+    """Run every algorithm for every seed and score them (SPEC §8).
+
+    ``refine_steps > 0`` adds ``"imocs+refine"``: the IMOCS runs finished by gradient
+    refinement (:func:`dockjax.algorithms.refine_result`). ``best_known`` (from
+    :func:`best_known_cached`) becomes the reference front of the indicators; without it the
+    reference is the non-dominated union of every final feasible set.
+    """
     import time
 
     t0 = time.perf_counter()
@@ -75,14 +116,35 @@ def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), se
         r = optimize(name, problem, seeds=list(seeds), pop_size=pop_size, n_iter=n_iter, hv_ref=ref_point)
         log(f"[{preset}] {name}: {len(r)} runs in {r.seconds:.1f} s (compile included)")
         results[name] = r
-    union = np.concatenate([f for r in results.values() for f in r.fronts() if len(f)] or [np.zeros((0, 2))])
-    ref_front = metrics.nondominated_points(union)
+    if refine_steps and "imocs" in results:
+        r = refine_result(problem, results["imocs"], steps=refine_steps)
+        log(f"[{preset}] imocs+refine: {r.extra['improved'].sum()} of {r.extra['improved'].size} members "
+            f"improved in {r.extra['refine_seconds']:.1f} s ({refine_steps} steps, compile included)")
+        results["imocs+refine"] = r
+    if best_known is not None and len(best_known.F):
+        ref_front, kind = metrics.nondominated_points(best_known.F), "best-known"
+    else:
+        union = np.concatenate([f for r in results.values() for f in r.fronts() if len(f)] or [np.zeros((0, 2))])
+        ref_front, kind = metrics.nondominated_points(union), "union"
     ideal, nadir = ref_front.min(0), ref_front.max(0)
+    hv_ref_front = metrics.indicators(ref_front, None, ref_front)["HV"]
     per_run = {}
     for name, r in results.items():
         rows = [metrics.indicators(r.F[i], r.front[i], ref_front) for i in range(len(r))]
         per_run[name] = {k: np.array([row[k] for row in rows]) for k in rows[0]}
-    return Study(preset, problem, results, ref_front, ideal, nadir, per_run, time.perf_counter() - t0)
+        per_run[name]["HV_fraction"] = per_run[name]["HV"] / hv_ref_front
+        # points of a run's front that the reference front does not weakly dominate
+        per_run[name]["beyond_ref"] = np.array(
+            [int(np.sum(~_weakly_dominated(f, ref_front))) for f in r.fronts()])
+    return Study(preset, problem, results, ref_front, ideal, nadir, per_run, time.perf_counter() - t0,
+                 reference_kind=kind, best_known=best_known)
+
+
+def _weakly_dominated(F: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """(k,) True where a row of F is weakly dominated by some row of R (minimisation)."""
+    if len(F) == 0:
+        return np.zeros(0, bool)
+    return np.any(np.all(R[None, :, :] <= F[:, None, :], -1), 1)
 
 
 def summary_table(study: Study) -> list[dict]:
@@ -104,6 +166,7 @@ def summary_table(study: Study) -> list[dict]:
                 row[f"{ind}_p_vs_imocs"] = p
             else:
                 row[f"{ind}_p_vs_imocs"] = np.nan
+        row["points_beyond_reference"] = int(np.sum(vals["beyond_ref"]))
         rows.append(row)
     return rows
 
@@ -146,10 +209,10 @@ def _fmt(v) -> str:
     return f"{v:.4g}"
 
 
-def _write_table(rows: list[dict], stem: Path) -> None:
+def _write_table(rows: list[dict], stem: Path, note: str = "") -> None:
     cols = list(rows[0])
     atomic_write_text(stem.with_suffix(".csv"), "\n".join([",".join(cols)] + [",".join(_fmt(r[c]) for c in cols) for r in rows]) + "\n")
-    md = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    md = ([note, ""] if note else []) + ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     md += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in rows]
     atomic_write_text(stem.with_suffix(".md"), "\n".join(md) + "\n")
 
@@ -160,7 +223,13 @@ def write_study(study: Study, out: Path) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     rows = summary_table(study)
-    _write_table(rows, folder / "indicators")
+    _write_table(rows, folder / "indicators", note=(
+        f"Indicators on objectives normalised by the reference front: {study.reference_description}. "
+        "HV_fraction = HV / HV of the reference front (same normalisation and reference point 1.1); "
+        "points_beyond_reference counts front points, over all runs, that the reference front does not "
+        "weakly dominate."))
+    atomic_write_text(folder / "reference.txt", study.reference_description + "\n")
+    written.append(folder / "reference.txt")
     written += [folder / "indicators.csv", folder / "indicators.md"]
     # per-run indicators (every number of the table can be recomputed from these)
     per = [{"algorithm": n, "seed": int(s), **{k: v[i] for k, v in vals.items()}}
@@ -173,6 +242,9 @@ def write_study(study: Study, out: Path) -> list[Path]:
         raw.update({f"{n}_X": r.X, f"{n}_F": r.F, f"{n}_G": r.G, f"{n}_front": r.front,
                     f"{n}_seeds": r.seeds, f"{n}_history": r.history})
     raw["reference_front"] = study.reference_front
+    raw["reference_kind"] = np.array(study.reference_kind)
+    if study.best_known is not None:
+        raw.update({"best_known_X": study.best_known.X, "best_known_F": study.best_known.F})
     atomic_savez(folder / "raw.npz", raw, compressed=True)
     written.append(folder / "raw.npz")
     # Table 3 and Table 4 analogues
@@ -201,6 +273,7 @@ def write_study(study: Study, out: Path) -> list[Path]:
     # figures
     fronts = {n: r.fronts()[median_run(study, n)] for n, r in study.results.items()}
     written.append(plots.plot_fronts(fronts, folder / "fronts.png", reference=study.reference_front,
+                                     reference_label=f"reference ({study.reference_kind})",
                                      title=f"fronts of the median-HV runs ({study.preset})"))
     if chosen:
         samples = {}
@@ -216,7 +289,8 @@ def write_study(study: Study, out: Path) -> list[Path]:
                   "acceleration": traj.joints(t, 2)}
         written.append(plots.plot_joints(sample, study.problem.limits, folder / "joints.png",
                                          title="joints of the compromise trajectory"))
-    hist = {n: r.history for n, r in study.results.items() if r.history is not None}
+    # a memetic run's history is its optimiser's (before refinement): not drawn twice
+    hist = {n: r.history for n, r in study.results.items() if r.history is not None and "+refine" not in n}
     written.append(plots.plot_convergence(hist, folder / "convergence.png",
                                           title=f"hypervolume (ref {np.round(hv_reference(study.problem), 3).tolist()})"))
     return written

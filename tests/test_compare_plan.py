@@ -31,8 +31,10 @@ def _is_png(path: Path) -> bool:
 @pytest.fixture(scope="module")
 def compare_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("cmp")
-    r = _run([sys.executable, str(ROOT / "experiments" / "compare.py"), "--seeds", "2", "--pop", "10",
-              "--iters", "3", "--presets", "paper", "--algorithms", "imocs", "nsga2", "--out", str(out)])
+    r = _run([sys.executable, str(ROOT / "experiments" / "compare.py"), "--seeds", "2", "--pop", "8",
+              "--iters", "3", "--presets", "paper", "--algorithms", "imocs", "nsga2", "mocs", "mopso",
+              "--refine-steps", "20", "--best-known-points", "16", "--best-known-steps", "150",
+              "--out", str(out)])
     assert r.returncode == 0, r.stderr[-2000:]
     return out / "paper", r.stdout
 
@@ -48,8 +50,47 @@ def test_compare_writes_every_promised_file(compare_out):
     for ind in ("ONVG", "GD", "SP", "IGD", "HV"):
         assert f"{ind}_median" in header and f"{ind}_iqr" in header and f"{ind}_p_vs_imocs" in header
     raw = np.load(folder / "raw.npz")
-    assert raw["imocs_F"].shape[:2] == (2, 10) and raw["nsga2_history"].shape == (2, 3)
+    assert raw["imocs_F"].shape[:2] == (2, 8) and raw["nsga2_history"].shape == (2, 3)
     assert "wall time" in stdout
+    rows = (folder / "indicators.csv").read_text().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["imocs", "nsga2", "mocs", "mopso", "imocs+refine"]
+    assert "best-known front" in (folder / "reference.txt").read_text()
+    assert "best-known front" in (folder / "indicators.md").read_text()
+
+
+def _hv(F, ref):
+    """Plain NumPy 2-D hypervolume (minimisation), independent of dockjax."""
+    F = F[np.all(F < ref, 1)]
+    F = F[np.argsort(F[:, 0])]
+    hv, best = 0.0, ref[1]
+    for t, j in F:
+        if j < best:
+            hv += (ref[0] - t) * (best - j)
+            best = j
+    return hv
+
+
+def test_best_known_front_beats_every_run_of_the_four_algorithms_and_is_dense_feasible(compare_out):
+    folder, _ = compare_out
+    raw = np.load(folder / "raw.npz")
+    assert str(raw["reference_kind"]) == "best-known"
+    best = raw["best_known_F"]
+    p = DockingProblem()
+    Fb, _ = p.evaluate(raw["best_known_X"])
+    np.testing.assert_allclose(Fb, best, rtol=1e-12)
+    _, ok = R.dense_check(p, raw["best_known_X"], n_samples=4001)
+    assert np.all(ok)
+    ref = np.array([61.0, 1.05 * max(best[:, 1].max(), max(raw[f"{a}_F"][..., 1].max() for a in
+                                                            ("imocs", "nsga2", "mocs", "mopso")))])
+    hv_best = _hv(best, ref)
+    for a in ("imocs", "nsga2", "mocs", "mopso", "imocs+refine"):
+        F, front = raw[f"{a}_F"], raw[f"{a}_front"]
+        for i in range(F.shape[0]):
+            assert _hv(F[i][front[i]], ref) <= hv_best, (a, i)
+    # the memetic finish improves on IMOCS run by run
+    for i in range(2):
+        assert _hv(raw["imocs+refine_F"][i][raw["imocs+refine_front"][i]], ref) >= \
+            _hv(raw["imocs_F"][i][raw["imocs_front"][i]], ref)
 
 
 def test_compare_chosen_trajectories_are_feasible_on_the_dense_check(compare_out):
