@@ -38,6 +38,9 @@ __all__ = ["DockingProblem", "score", "score_batch"]
 _DEG = math.pi / 180.0
 G_SAFETY = 1e-9
 """Added to every constraint column so that rounding never understates it (SPEC §6)."""
+BOUND_TOLERANCE = 1e-2
+"""SPEC §6: the most a G column may overstate its true value."""
+
 GAUSS_NODES = 8
 """Gauss–Legendre nodes per knot span for the jerk integral (SPEC §5)."""
 
@@ -80,9 +83,12 @@ class DockingProblem:
       rigorous bound of the remainder (fast; never understated; overstated by twice the
       bound, far below 0.01 when pitch and yaw move by tenths of a degree, as in the
       paper); ``"exact"`` — the true joint at the polished roots (slower; for large
-      attitude changes); ``"auto"`` (default) picks ``"bound"`` when its worst-case
+      attitude changes); ``"adaptive"`` — ``"bound"`` for every candidate whose own
+      overstatement bound (twice its remainder bound) is at most 0.01, ``"exact"`` for the
+      others, which are gathered and scored in fixed-size chunks (the exact path runs only
+      as often as needed); ``"auto"`` (default) picks ``"bound"`` when its worst-case
       overstatement over the decision box (a crude hull estimate) is below 0.01, else
-      ``"exact"``.
+      ``"adaptive"``.
 
     Attributes: ``n_var``, ``n_obj`` (2), ``n_con`` (24), ``lower``, ``upper`` (natural
     units, SPEC §3 order), ``limits`` (8, 3), ``home`` (8,), ``start``, ``goal``.
@@ -156,15 +162,15 @@ class DockingProblem:
         self.limits, self.home = limits, home_a
         self.lower, self.upper = lower, upper
         self.margin, self.reduced = float(mg), bool(reduced)
-        if right_arm not in ("auto", "bound", "exact"):
-            raise ValueError(f"right_arm must be 'auto', 'bound' or 'exact', got {right_arm!r}")
+        if right_arm not in ("auto", "bound", "exact", "adaptive"):
+            raise ValueError(f"right_arm must be 'auto', 'bound', 'exact' or 'adaptive', got {right_arm!r}")
         if right_arm == "auto":
-            right_arm = "bound" if self._bound_overstatement() <= 1e-2 else "exact"
-        self.exact_right_arm = right_arm == "exact"
+            right_arm = "bound" if self._bound_overstatement() <= BOUND_TOLERANCE else "adaptive"
+        self.right_arm = right_arm
 
     # -- pytree -------------------------------------------------------------------------
     _LEAVES = ("start", "goal", "arm_distance", "limits", "home", "lower", "upper", "_bounds_margin")
-    _META = ("reduced", "exact_right_arm")
+    _META = ("reduced", "right_arm")
 
     def _tree_flatten(self):
         return tuple(getattr(self, k) for k in self._LEAVES), tuple(
@@ -205,6 +211,18 @@ class DockingProblem:
                 )
             )
         return float(np.max(2 * b / self.limits[4:7]))
+
+    def with_right_arm(self, mode: str) -> "DockingProblem":
+        """The same problem with another treatment of the right arm (``"bound"``,
+        ``"exact"`` or ``"adaptive"``); shares every array."""
+        if mode not in ("bound", "exact", "adaptive"):
+            raise ValueError(f"mode must be 'bound', 'exact' or 'adaptive', got {mode!r}")
+        leaves, meta = self._tree_flatten()
+        return DockingProblem._tree_unflatten((meta[0], mode), leaves)
+
+    @property
+    def exact_right_arm(self) -> bool:
+        return self.right_arm == "exact"
 
     # -- public API ---------------------------------------------------------------------
     @property
@@ -352,17 +370,24 @@ def _joint_polys(problem: DockingProblem, c, h, ref):
     return polys - problem.home[None, :, None] * e0
 
 
-def _maxima(problem: DockingProblem, c, h, ref):
-    """``max_t |q_j − home_j|``, ``max |q_j'|``, ``max |q_j''|`` per joint. → (8, 3)."""
+def _maxima(problem: DockingProblem, c, h, ref, *, with_need: bool = False):
+    """``max_t |q_j − home_j|``, ``max |q_j'|``, ``max |q_j''|`` per joint. → (8, 3).
+
+    With ``with_need``, also whether this candidate's bound treatment of the right arm may
+    overstate by more than :data:`BOUND_TOLERANCE` (always False on the exact path)."""
     polys = jax.lax.optimization_barrier(_joint_polys(problem, c, h, ref))
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     spans, times = extrema.span_maxima(polys, hh)
     lin = jnp.max(spans, axis=0)  # (8, 3)
-    if problem.exact_right_arm:
+    if problem.right_arm == "exact":
         right = _right_polished(problem, c, h, ref, times)
+        need = jnp.zeros((), bool)
     else:
-        right = lin[4:7] + _right_remainder_bounds(problem, c, h, ref).max(axis=0)
-    return lin.at[4:7].set(right)
+        rem = _right_remainder_bounds(problem, c, h, ref).max(axis=0)  # (3 joints, 3)
+        right = lin[4:7] + rem
+        need = jnp.any(2.0 * rem > BOUND_TOLERANCE * problem.limits[4:7])
+    out = lin.at[4:7].set(right)
+    return (out, need) if with_need else out
 
 
 def _hessian_norms(sin_a, sin_b):
@@ -460,24 +485,70 @@ def _jerk(problem: DockingProblem, c, h, ref):
     return jnp.sum(jnp.sqrt(ms))
 
 
-def score(problem: DockingProblem, x):
-    """Objectives and constraint values of one candidate. x: (n_var,) → F (2,), G (24,)."""
+def _score(problem: DockingProblem, x):
+    """F (2,), G (24,) and the adaptive mode's ``need`` flag of one candidate."""
     h, u, c = decode(problem, x)
     T = jnp.sum(h)
     ref = jax.lax.optimization_barrier(span_angles(c, h))
     F = jnp.stack([T, _jerk(problem, c, h, ref)])
-    G = (_maxima(problem, c, h, ref) / problem.limits - 1.0 + G_SAFETY).reshape(-1)
+    M, need = _maxima(problem, c, h, ref, with_need=True)
+    G = (M / problem.limits - 1.0 + G_SAFETY).reshape(-1)
+    return F, G, need
+
+
+def score(problem: DockingProblem, x):
+    """Objectives and constraint values of one candidate. x: (n_var,) → F (2,), G (24,).
+
+    In the ``"adaptive"`` right-arm mode this is the exact path where the candidate needs
+    it (both paths are computed: use :func:`score_batch` for populations)."""
+    if problem.right_arm == "adaptive":
+        F, G, need = _score(problem.with_right_arm("bound"), x)
+        _, Gx, _ = _score(problem.with_right_arm("exact"), x)
+        return F, jnp.where(need, Gx, G)
+    F, G, _ = _score(problem, x)
     return F, G
+
+
+def _score_plain(problem: DockingProblem, X):
+    # candidates along the last axis inside (X.T): XLA then streams every elementwise step
+    # over contiguous candidates, about 1.3× faster than along the first
+    F, G, need = jax.vmap(_score, in_axes=(None, 1), out_axes=(1, 1, 0))(problem, X.T)
+    return F.T, G.T, need
+
+
+ADAPTIVE_CHUNK = 32
+"""Candidates per exact-path call of the ``"adaptive"`` right-arm mode."""
 
 
 def score_batch(problem: DockingProblem, X):
     """Traceable batch scoring: X (n, n_var) → F (n, 2), G (n, 24).
 
-    The candidates are mapped along the last axis inside (``X.T``): XLA then streams every
-    elementwise step over contiguous candidates, about 1.3× faster than along the first.
+    ``"adaptive"`` right arm: every candidate is scored by the bound path; those whose own
+    overstatement bound exceeds :data:`BOUND_TOLERANCE` are gathered (stable order) and
+    re-scored by the exact path in chunks of :data:`ADAPTIVE_CHUNK` inside a
+    ``lax.while_loop`` that stops when none is left, so the dear path costs only what is
+    needed (usually nothing).
     """
-    F, G = jax.vmap(score, in_axes=(None, 1), out_axes=1)(problem, X.T)
-    return F.T, G.T
+    if problem.right_arm != "adaptive":
+        F, G, _ = _score_plain(problem, X)
+        return F, G
+    F, G, need = _score_plain(problem.with_right_arm("bound"), X)
+    exact = problem.with_right_arm("exact")
+    n = X.shape[0]
+    k = min(n, ADAPTIVE_CHUNK)
+    order = jnp.argsort(jnp.where(need, 0, 1), stable=True)  # the needing ones first
+    count = jnp.sum(need)
+
+    def body(carry):
+        start, G = carry
+        # dynamic_slice clamps the window into [0, n): a candidate scored twice, or one
+        # that did not need it, gets the exact path's values, which are valid too
+        idx = jax.lax.dynamic_slice(order, (start,), (k,))
+        _, Gx, _ = _score_plain(exact, X[idx])
+        return start + k, G.at[idx].set(Gx)
+
+    _, G = jax.lax.while_loop(lambda c: c[0] < count, body, (jnp.zeros((), count.dtype), G))
+    return F, G
 
 
 _evaluate_batch = jax.jit(score_batch)

@@ -53,6 +53,7 @@ import numpy as np
 import optax
 
 from . import bspline, config
+from .metrics import nondominated_points
 from .problem import GAUSS_NODES, G_SAFETY, DockingProblem, _maxima, decode, right_jets, span_angles
 
 __all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
@@ -121,8 +122,10 @@ def _safe_jerk(problem, c, h, ref):
 
 def objectives_safe(problem: DockingProblem, x):
     """``score`` (SPEC §5–6) of one candidate with the NaN-safe jerk: x (n_var,) → F (2,),
-    G (24,). Equal in value to :func:`dockjax.problem.score`; differentiable everywhere
-    the kernel is (G is piecewise smooth)."""
+    G (24,). Equal in value to :func:`dockjax.problem.score`, except in the ``"adaptive"``
+    right-arm mode, where the bound path is used throughout (never understated, so safe to
+    certify with; :func:`refine` re-scores its results with the kernel); differentiable
+    everywhere the kernel is (G is piecewise smooth)."""
     h, _, c = decode(problem, x)
     ref = jax.lax.optimization_barrier(span_angles(c, h))
     F = jnp.stack([jnp.sum(h), _safe_jerk(problem, c, h, ref)])
@@ -293,9 +296,21 @@ def refine(
     if X.shape[0] == 0:
         raise ValueError("X must have at least one row")
     t0 = time.perf_counter()
-    F0, G0, jb, xb, fb, gb, nbad = _run(problem, X, X[:, : config.N_INTERVALS].sum(1), steps,
+    _, _, jb, xb, fb, gb, nbad = _run(problem, X, X[:, : config.N_INTERVALS].sum(1), steps,
                                   learning_rate, penalty, margin, keep_input=True)
     found = np.isfinite(jb) & ~np.all(xb == X, 1)
+    # the kernel has the last word (in the "adaptive" right-arm mode the loop used the
+    # bound path, which never understates but may overstate more): a refined row is kept
+    # only if the kernel finds it feasible, no longer, and — for a feasible input — of
+    # strictly lower jerk
+    F0, G0 = problem.evaluate(X)
+    if found.any():
+        Fk, Gk = problem.evaluate(xb[found])
+        feas_in = np.all(G0[found] <= 0, 1)
+        ok = (np.all(Gk <= 0, 1) & (Fk[:, 0] <= X[found, : config.N_INTERVALS].sum(1) * (1 + 1e-12))
+              & (~feas_in | (Fk[:, 1] < F0[found, 1])))
+        fb[found], gb[found] = Fk, Gk
+        found[np.flatnonzero(found)[~ok]] = False
     Xo = np.where(found[:, None], xb, X)
     Fo = np.where(found[:, None], fb, F0)
     Go = np.where(found[:, None], gb, G0)
@@ -366,14 +381,11 @@ def best_known_front(
     cap = np.concatenate(caps)
     _, _, jb, xb, fb, gb, _ = _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input=True)
     ok = np.isfinite(jb) & np.all(gb <= 0, 1)
-    Xf, Ff, Gf = xb[ok], fb[ok], gb[ok]
-    keep = np.ones(len(Ff), bool)
-    for i in range(len(Ff)):
-        dom = np.all(Ff <= Ff[i], 1) & np.any(Ff < Ff[i], 1)
-        keep[i] = not dom.any()
-    Xf, Ff, Gf = Xf[keep], Ff[keep], Gf[keep]
-    _, uniq = np.unique(Ff, axis=0, return_index=True)
-    order = uniq[np.argsort(Ff[uniq, 0])]
+    Xf = xb[ok]
+    Ff, Gf = problem.evaluate(Xf) if len(Xf) else (fb[ok], gb[ok])  # the kernel's word
+    feas = np.all(Gf <= 0, 1)
+    Xf, Ff, Gf = Xf[feas], Ff[feas], Gf[feas]
+    _, order = nondominated_points(Ff, return_index=True)  # distinct, sorted by T
     return FrontResult(X=Xf[order], F=Ff[order], G=Gf[order], targets=targets,
                        seconds=time.perf_counter() - t0)
 

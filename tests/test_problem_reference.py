@@ -157,7 +157,7 @@ def _paper_like_config(seed):
 @pytest.mark.parametrize(
     ("seed", "right_arm"),
     [("paper", "bound"), ("paper", "exact"), (0, "bound"), (2, "bound"), (1, "auto"),
-     (4, "auto")],
+     (4, "auto"), (1, "adaptive")],
 )
 def test_right_arm_modes_match_reference(seed, right_arm):
     """Every way of finding the right arm's nonlinear maxima meets SPEC §6 where it claims
