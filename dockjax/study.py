@@ -83,7 +83,7 @@ def best_known_cached(problem: DockingProblem, path: Path | None = None, log=pri
     :data:`BEST_KNOWN`), reused from ``path`` (an ``.npz``) when that file was written for
     the same problem and settings, else computed and written there atomically."""
     settings = {**BEST_KNOWN, **settings}
-    key = json.dumps({"problem": repr(problem), **settings}, sort_keys=True)
+    key = json.dumps({"problem": repr(problem), "right_arm": problem.right_arm, **settings}, sort_keys=True)
     if path is not None and Path(path).exists():
         with np.load(path) as d:
             if str(d["key"]) == key:
