@@ -138,6 +138,8 @@ class SweepArgs:
     """Optimiser. ρ/α_max apply to IMOCS only; for the others the grid is a single setting."""
     preset: Literal["paper", "wide"] = "paper"
     """Problem preset: paper (h in [3.5, 10] s) or wide (h in [0.5, 10] s)."""
+    refine_steps: int = 0
+    """Memetic finish: polish every run's final population with this many gradient-refinement steps (dockjax.refine; the algorithm column then reads e.g. imocs+refine). 0: off."""
     out: Path = Path("results/sweep")
     """Results folder (created). Re-run the same command on it to resume; a folder holding a different configuration is refused."""
     chunk: int = 16
@@ -171,9 +173,12 @@ class SweepConfig:
     iters: int
     chunk: int
     reference: dict
+    refine_steps: int = 0
 
     def identity(self) -> dict:
         d = asdict(self)
+        if not self.refine_steps:  # folders written before the option existed stay resumable
+            d.pop("refine_steps")
         d["pop"] = list(self.pop)
         d["rho"] = None if self.rho is None else list(self.rho)
         d["alpha_max"] = None if self.alpha_max is None else list(self.alpha_max)
@@ -207,6 +212,12 @@ class ChunkSpec:
     rho: tuple[float, ...]
     alpha_max: tuple[float, ...]
     n_real: int
+    refine_steps: int = 0
+
+    @property
+    def label(self) -> str:
+        """The algorithm column: ``imocs`` or, with the memetic finish, ``imocs+refine``."""
+        return f"{self.algorithm}+refine" if self.refine_steps else self.algorithm
 
     @property
     def name(self) -> str:
@@ -232,7 +243,7 @@ def plan_chunks(cfg: SweepConfig) -> list[ChunkSpec]:
                 index=len(chunks), algorithm=cfg.algorithm, preset=cfg.preset, pop=pop,
                 iters=cfg.iters, run_ids=tuple(real), seeds=tuple(runs[i][3] for i in padded),
                 rho=tuple(runs[i][1] for i in padded), alpha_max=tuple(runs[i][2] for i in padded),
-                n_real=len(real)))
+                n_real=len(real), refine_steps=cfg.refine_steps))
     return chunks
 
 
@@ -244,7 +255,7 @@ def pilot_spec(cfg: SweepConfig) -> ChunkSpec:
     return ChunkSpec(index=-1, algorithm=cfg.algorithm, preset=cfg.preset, pop=max(cfg.pop),
                      iters=cfg.iters, run_ids=tuple(range(size)),
                      seeds=tuple(PILOT_SEED0 + i for i in range(size)), rho=(rho,) * size,
-                     alpha_max=(alpha,) * size, n_real=size)
+                     alpha_max=(alpha,) * size, n_real=size, refine_steps=cfg.refine_steps)
 
 
 # ----------------------------------------------------------------------------- one chunk
@@ -277,12 +288,13 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None) -> dict[str, np.nd
     if spec.algorithm in GRID_ALGORITHMS:
         batch = {"rho": np.asarray(spec.rho, np.float64), "alpha_max": np.asarray(spec.alpha_max, np.float64)}
     r = optimize(spec.algorithm, _problem(spec.preset), seeds=np.asarray(spec.seeds, np.int64),
-                 pop_size=spec.pop, n_iter=spec.iters, batch_params=batch)
+                 pop_size=spec.pop, n_iter=spec.iters, batch_params=batch,
+                 refine_steps=spec.refine_steps)
     n = spec.n_real
     fronts = r.fronts()[:n]
     out: dict[str, np.ndarray] = {
         "run_id": np.asarray(spec.run_ids, np.int64),
-        "algorithm": np.asarray([spec.algorithm] * n),
+        "algorithm": np.asarray([spec.label] * n),
         "pop": np.full(n, spec.pop, np.int64),
         "rho": np.asarray(spec.rho[:n], np.float64),
         "alpha_max": np.asarray(spec.alpha_max[:n], np.float64),
@@ -389,7 +401,8 @@ def make_config(args: SweepArgs) -> tuple[SweepConfig, np.ndarray | None]:
     if bad_pop:
         errors.append(f"--pop values must be >= 4, got {bad_pop}")
     for name, v, lo in (("--seeds", args.seeds, 1), ("--iters", args.iters, 1),
-                        ("--chunk", args.chunk, 1), ("--workers", args.workers, 1), ("--top", args.top, 1)):
+                        ("--chunk", args.chunk, 1), ("--workers", args.workers, 1), ("--top", args.top, 1),
+                        ("--refine-steps", args.refine_steps, 0)):
         if v < lo:
             errors.append(f"{name} must be >= {lo}, got {v}")
     if args.scheduler is not None and args.backend != "dask":
@@ -418,7 +431,8 @@ def make_config(args: SweepArgs) -> tuple[SweepConfig, np.ndarray | None]:
         algorithm=args.algorithm, preset=args.preset, pop=tuple(sorted(set(args.pop))),
         rho=_grid("rho", args.rho) if has_grid else None,
         alpha_max=_grid("alpha_max", args.alpha_max) if has_grid else None,
-        seeds=args.seeds, iters=args.iters, chunk=args.chunk, reference=reference)
+        seeds=args.seeds, iters=args.iters, chunk=args.chunk, reference=reference,
+        refine_steps=args.refine_steps)
     # the algorithm's own checks (imports JAX, compiles nothing)
     from . import algorithms
 
@@ -629,7 +643,7 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
         todo = [c for c in plan if c.index not in done]
         n_total = sum(c.n_real for c in plan)
         n_done = sum(c.n_real for c in plan if c.index in done)
-        log(f"sweep: {cfg.algorithm}, {cfg.n_runs()} runs ({len(cfg.settings())} settings × {cfg.seeds} seeds, "
+        log(f"sweep: {plan[0].label if plan else cfg.algorithm}, {cfg.n_runs()} runs ({len(cfg.settings())} settings × {cfg.seeds} seeds, "
             f"{cfg.iters} iterations) in {len(plan)} chunks of {len(plan[0].seeds)}; "
             + (f"resuming: {len(done)} of {len(plan)} chunks already done" if done else "starting"))
         ref = _reference(out, cfg, front, be, log)

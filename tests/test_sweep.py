@@ -136,6 +136,7 @@ def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
     (["--rho"], "--rho grid is empty"),
     (["--pop"], "--pop grid is empty"),
     (["--seeds", "0"], "--seeds must be >= 1"),
+    (["--refine-steps", "-1"], "--refine-steps must be >= 0"),
     (["--scheduler", "tcp://localhost:1"], "--scheduler needs --backend dask"),
 ])
 def test_bad_input_exits_2_before_compiling_and_leaves_no_folder(tmp_path, capsys, extra, message):
@@ -212,3 +213,14 @@ def test_reference_front_file(tmp_path):
     bad.write_text("1,2,3\n")
     with pytest.raises(sweep.ConfigError, match="reference-front"):
         sweep.make_config(sweep.SweepArgs(reference_front=bad))
+
+
+def test_memetic_option_is_part_of_the_configuration():
+    plain, memetic = _cfg(), _cfg(refine_steps=50)
+    # a folder written without the option keeps its identity (still resumable) ...
+    assert "refine_steps" not in plain.identity() and memetic.identity()["refine_steps"] == 50
+    assert plain.identity() != memetic.identity()  # ... and refuses to mix with a memetic sweep
+    plan = sweep.plan_chunks(memetic)
+    assert all(c.refine_steps == 50 and c.label == "imocs+refine" for c in plan)
+    assert sweep.pilot_spec(memetic).refine_steps == 50
+    assert sweep.plan_chunks(plain)[0].label == "imocs"
