@@ -157,3 +157,25 @@ def test_optimize_rejects_negative_refine_steps(problem):
 
     with pytest.raises(ValueError, match="refine_steps"):
         optimize("imocs", problem, pop_size=16, n_iter=5, refine_steps=-1)
+
+
+def test_gradient_of_the_limits_matches_finite_differences(problem):
+    """The critical times carry no gradient (envelope theorem): the derivative of every G
+    column must still equal the central finite difference of the kernel's values."""
+    from dockjax.refine import objectives_safe
+
+    x0 = straight_line(problem, [33.0])[0]
+    rng = np.random.default_rng(5)
+    x0[6:] += rng.uniform(-0.02, 0.02, x0.size - 6) * (problem.upper - problem.lower)[6:]
+    x0[:6] += rng.uniform(-0.3, 0.3, 6)
+    w = rng.uniform(0.5, 1.5, 24)  # a generic combination of the 24 columns (and the jerk)
+    with jax.enable_x64(True):
+        f = lambda x: jnp.dot(w, objectives_safe(problem, x)[1]) + objectives_safe(problem, x)[0][1]  # noqa: E731
+        g = np.asarray(jax.jit(jax.grad(f))(jnp.asarray(x0)))
+    def value(x):
+        F, G = problem.evaluate(x[None])
+        return float(w @ G[0] + F[0, 1])
+    eps = 1e-6 * np.maximum(1.0, np.abs(x0))
+    fd = np.array([(value(x0 + e) - value(x0 - e)) / (2 * e[i])
+                   for i, e in enumerate(np.diag(eps))])
+    np.testing.assert_allclose(g, fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
