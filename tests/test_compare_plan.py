@@ -87,6 +87,13 @@ def test_best_known_front_beats_every_run_of_the_four_algorithms_and_is_dense_fe
         F, front = raw[f"{a}_F"], raw[f"{a}_front"]
         for i in range(F.shape[0]):
             assert _hv(F[i][front[i]], ref) <= hv_best, (a, i)
+    # every algorithm's final feasible set passes the independent dense check (issue 3)
+    for a in ("imocs", "nsga2", "mocs", "mopso", "imocs+refine"):
+        X, G = raw[f"{a}_X"].reshape(-1, p.n_var), raw[f"{a}_G"].reshape(-1, p.n_con)
+        feasible = np.all(G <= 0, 1)
+        assert feasible.any(), a
+        _, ok = R.dense_check(p, X[feasible], n_samples=4001)
+        assert np.all(ok), a
     # the memetic finish improves on IMOCS run by run
     for i in range(2):
         assert _hv(raw["imocs+refine_F"][i][raw["imocs+refine_front"][i]], ref) >= \
@@ -195,6 +202,7 @@ def test_plan_limits_file_with_a_negative_limit_exits_2(tmp_path):
 def test_python_api_returns_the_certified_trajectory_as_arrays():
     from dockjax.plan import plan
 
-    p = plan(weights=(1, 0), pop_size=12, n_iter=4, rate=50, refine=False)
+    # the CLI test's settings: the same compiled run, reused through the persistent cache
+    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine=False)
     assert p.samples["position"].shape == (len(p.samples["t"]), 8)
     assert math.isclose(p.samples["t"][-1], p.T)

@@ -23,18 +23,27 @@ def problem():
 
 
 @pytest.fixture(scope="module")
-def imocs_front(problem):
+def imocs_result(problem):
     from dockjax.algorithms import optimize
+    from dockjax.study import hv_reference
 
-    r = optimize("imocs", problem, seeds=[0], pop_size=16, n_iter=5)
-    m = r.front[0]
-    return r.X[0][m], r.F[0][m]
+    # the very call of the compare.py test (same shapes: one compilation, shared through
+    # the persistent cache of the test session)
+    return optimize("imocs", problem, seeds=[0, 1], pop_size=8, n_iter=3, hv_ref=hv_reference(problem))
+
+
+@pytest.fixture(scope="module")
+def imocs_front(imocs_result):
+    """Every feasible non-dominated member of the two short runs (16 rows at most)."""
+    r = imocs_result
+    m = r.front
+    return r.X[m], r.F[m]
 
 
 @pytest.fixture(scope="module")
 def refined(problem, imocs_front):
     X, _ = imocs_front
-    return refine(problem, X[:8], steps=STEPS)
+    return refine(problem, X, steps=STEPS)
 
 
 def _hv(F, valid=None):  # noqa: D103
@@ -48,13 +57,13 @@ def test_gradients_stay_finite(refined):
 
 def test_safe_objective_matches_kernel(problem, imocs_front, refined):
     # F_in/G_in come from the NaN-safe objective of refine.py; the kernel must agree
-    F_ref, G_ref = problem.evaluate(imocs_front[0][:8])
+    F_ref, G_ref = problem.evaluate(imocs_front[0])
     np.testing.assert_allclose(refined.F_in, F_ref, rtol=1e-13)
     np.testing.assert_allclose(refined.G_in, G_ref, rtol=0, atol=1e-13)
 
 
 def test_refined_points_dominate_or_equal_inputs_and_are_dense_feasible(problem, imocs_front, refined):
-    X_in = imocs_front[0][:8]
+    X_in = imocs_front[0]
     F_in, _ = problem.evaluate(X_in)
     F, G = problem.evaluate(refined.X)
     np.testing.assert_allclose(F, refined.F, rtol=1e-12)
@@ -68,7 +77,7 @@ def test_refined_points_dominate_or_equal_inputs_and_are_dense_feasible(problem,
     Gd, feas = dense_check(problem, refined.X, n_samples=4001)
     assert np.all(feas), Gd.max(1)
     assert np.all((refined.X >= problem.lower) & (refined.X <= problem.upper))
-    assert refined.improved.sum() >= 6
+    assert refined.improved.mean() >= 0.75
 
 
 def test_refine_raises_hypervolume_of_short_imocs_run(problem, imocs_front, refined):
@@ -76,7 +85,7 @@ def test_refine_raises_hypervolume_of_short_imocs_run(problem, imocs_front, refi
     hv_in = _hv(F_front)
     F_all = np.vstack([F_front, refined.F])
     assert _hv(F_all) > hv_in
-    assert _hv(refined.F) > _hv(F_front[:8])
+    assert _hv(refined.F) > hv_in
 
 
 def test_best_known_front_is_feasible_and_beats_short_imocs(problem, imocs_front):
@@ -127,29 +136,29 @@ def test_refine_rejects_bad_population(problem):
 
 
 @pytest.fixture(scope="module")
-def memetic(problem):
-    from dockjax.algorithms import optimize, refine_result
+def memetic(problem, imocs_result):
+    from dockjax.algorithms import refine_result
 
-    r = optimize("imocs", problem, seeds=[0], pop_size=16, n_iter=5)  # the compiled run above
-    return r, refine_result(problem, r, steps=60)
+    return imocs_result, refine_result(problem, imocs_result, steps=60)  # 16 rows: compiled above
 
 
 def test_memetic_finish_never_worsens_a_member_and_raises_each_runs_hypervolume(problem, memetic):
     r, m = memetic
     assert m.algorithm == "imocs+refine" and r.algorithm == "imocs"
     assert m.X.shape == r.X.shape and m.extra["improved"].shape == r.F.shape[:2]
-    # member by member: a feasible member is replaced by one that it does not dominate
-    feas = r.feasible[0]
-    assert np.all(m.feasible[0][feas])
-    assert np.all(m.F[0][feas] <= r.F[0][feas] + 1e-12)
-    # scores of the new members agree with a fresh evaluation, fronts are feasible on the
-    # independent dense check, and U matches X
-    F, G = problem.evaluate(m.X[0])
-    np.testing.assert_allclose(F, m.F[0], rtol=1e-12)
-    np.testing.assert_allclose(m.X[0], problem.lower + m.U[0] * (problem.upper - problem.lower), atol=1e-9)
-    _, ok = dense_check(problem, m.X[0][m.front[0]], n_samples=4001)
-    assert np.all(ok)
-    assert _hv(m.F[0], m.front[0]) > _hv(r.F[0], r.front[0])
+    for i in range(len(r)):
+        # member by member: a feasible member is replaced by one that it does not dominate
+        feas = r.feasible[i]
+        assert np.all(m.feasible[i][feas])
+        assert np.all(m.F[i][feas] <= r.F[i][feas] + 1e-12)
+        # scores of the new members agree with a fresh evaluation, fronts are feasible on
+        # the independent dense check, and U matches X
+        F, G = problem.evaluate(m.X[i])
+        np.testing.assert_allclose(F, m.F[i], rtol=1e-12)
+        np.testing.assert_allclose(m.X[i], problem.lower + m.U[i] * (problem.upper - problem.lower), atol=1e-9)
+        _, ok = dense_check(problem, m.X[i][m.front[i]], n_samples=4001)
+        assert np.all(ok)
+        assert _hv(m.F[i], m.front[i]) > _hv(r.F[i], r.front[i])
 
 
 def test_optimize_rejects_negative_refine_steps(problem):
@@ -161,21 +170,26 @@ def test_optimize_rejects_negative_refine_steps(problem):
 
 def test_gradient_of_the_limits_matches_finite_differences(problem):
     """The critical times carry no gradient (envelope theorem): the derivative of every G
-    column must still equal the central finite difference of the kernel's values."""
+    column along random directions (forward mode; reverse mode is its transpose) must
+    still equal the central finite difference of the kernel's values."""
     from dockjax.refine import objectives_safe
 
     x0 = straight_line(problem, [33.0])[0]
     rng = np.random.default_rng(5)
-    x0[6:] += rng.uniform(-0.02, 0.02, x0.size - 6) * (problem.upper - problem.lower)[6:]
+    width = problem.upper - problem.lower
+    x0[6:] += rng.uniform(-0.02, 0.02, x0.size - 6) * width[6:]
     x0[:6] += rng.uniform(-0.3, 0.3, 6)
-    w = rng.uniform(0.5, 1.5, 24)  # a generic combination of the 24 columns (and the jerk)
+    dirs = rng.normal(size=(3, x0.size)) * width * 1e-2
     with jax.enable_x64(True):
-        f = lambda x: jnp.dot(w, objectives_safe(problem, x)[1]) + objectives_safe(problem, x)[0][1]  # noqa: E731
-        g = np.asarray(jax.jit(jax.grad(f))(jnp.asarray(x0)))
-    def value(x):
-        F, G = problem.evaluate(x[None])
-        return float(w @ G[0] + F[0, 1])
-    eps = 1e-6 * np.maximum(1.0, np.abs(x0))
-    fd = np.array([(value(x0 + e) - value(x0 - e)) / (2 * e[i])
-                   for i, e in enumerate(np.diag(eps))])
-    np.testing.assert_allclose(g, fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
+        jvp = jax.jit(jax.vmap(lambda v: jax.jvp(lambda x: objectives_safe(problem, x),
+                                                  (jnp.asarray(x0),), (v,))[1]))
+        dFs, dGs = jvp(jnp.asarray(dirs))
+    tangents = zip(np.asarray(dFs), np.asarray(dGs))
+    eps = 1e-5
+    rows = np.concatenate([[x0 + eps * v, x0 - eps * v] for v in dirs])
+    F, G = problem.evaluate(np.vstack([rows, np.repeat(rows[:1], 16 - len(rows), 0)]))  # 16 rows
+    for k, (dF, dG) in enumerate(tangents):
+        fd_G = (G[2 * k] - G[2 * k + 1]) / (2 * eps)
+        fd_J = (F[2 * k, 1] - F[2 * k + 1, 1]) / (2 * eps)
+        np.testing.assert_allclose(dG, fd_G, rtol=1e-4, atol=1e-7 * np.abs(fd_G).max())
+        np.testing.assert_allclose(float(dF[1]), fd_J, rtol=1e-5)
