@@ -268,7 +268,7 @@ class DockingProblem:
         n = arr.shape[0]
         # pad to a bucket of rows (copies of row 0, dropped again): populations of nearby
         # sizes share one compiled shape
-        padded = np.concatenate([arr, np.repeat(arr[:1], _bucket(n) - n, 0)]) if n else arr
+        padded = np.concatenate([arr, np.repeat(arr[:1], bucket_rows(n) - n, 0)]) if n else arr
         if precision == "float64":
             with jax.enable_x64(True):
                 F, G = _evaluate_batch(self, jnp.asarray(padded))
@@ -558,7 +558,7 @@ def score_batch(problem: DockingProblem, X):
 _evaluate_batch = jax.jit(score_batch)
 
 
-def _bucket(n: int) -> int:
+def bucket_rows(n: int) -> int:
     """Rows of the compiled call of :meth:`DockingProblem.evaluate` for n candidates: 16 up
     to 16 rows, then multiples of 16 up to 256, of 128 up to 4096, then of 1024 (at most
     ~11 % padding beyond 16 rows, ~2.5 % beyond 4096)."""

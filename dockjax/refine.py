@@ -54,7 +54,8 @@ import optax
 
 from . import bspline, config
 from .metrics import nondominated_points
-from .problem import GAUSS_NODES, G_SAFETY, DockingProblem, _maxima, decode, right_jets, span_angles
+from .problem import (GAUSS_NODES, G_SAFETY, DockingProblem, _maxima, bucket_rows, decode, right_jets,
+                      span_angles)
 
 __all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
 
@@ -211,7 +212,6 @@ def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_b
     return jb, xb, fb, gb, nbad
 
 
-_BUCKET = 16
 _CHUNK = 256
 _score_rows = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))
 
@@ -229,12 +229,9 @@ def _check_common(problem, steps, learning_rate, penalty, margin):
 
 
 def _bucket(n: int) -> int:
-    """Rows per compiled call: 16, 32, then multiples of 32 up to :data:`_CHUNK` (larger
-    batches go in chunks of _CHUNK), so a handful of shapes is ever compiled and padding
-    wastes little."""
-    if n <= 32:
-        return max(_BUCKET, 1 << (int(n) - 1).bit_length())
-    return min(_CHUNK, -(-int(n) // 32) * 32)
+    """Rows per compiled call: the kernel's bucket (:func:`dockjax.problem.bucket_rows`),
+    at most :data:`_CHUNK` (larger batches go in chunks of _CHUNK)."""
+    return min(_CHUNK, bucket_rows(n))
 
 
 def _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input):
