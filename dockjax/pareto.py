@@ -82,25 +82,30 @@ def constrained_dominance(F: jax.Array, cv: jax.Array) -> jax.Array:
     return jnp.where(both_feasible, _pareto_dominance(F), smaller_cv)
 
 
-def nondominated_rank(F: jax.Array, cv: jax.Array) -> jax.Array:
+def nondominated_rank(F: jax.Array, cv: jax.Array, stop_after: int | None = None) -> jax.Array:
     """0-based non-dominated front index under constrained dominance, any number of objectives.
 
     Peels fronts in a ``lax.while_loop``: a member not yet ranked joins the current front when
     no other unranked member dominates it. O(n^2 m) memory and O(n^2 (m + fronts)) work.
+    Under ``vmap`` this is faster than the sort-based `nondominated_rank_2d` (whose scan over
+    members is sequential) unless there are very many fronts.
 
     Args:
         F: (n, m) objective values, minimised.
         cv: (n,) total violation.
+        stop_after: static; if given, stop peeling once at least this many members are
+            ranked (survival needs no more): the members left share the next front index.
 
     Returns:
         (n,) int32 front index; 0 is the best front.
     """
     D = constrained_dominance(F, cv)
     n = F.shape[0]
+    need = n if stop_after is None else min(int(stop_after), n)
 
     def cond(state: tuple[jax.Array, jax.Array]) -> jax.Array:
         rank, _ = state
-        return jnp.any(rank < 0)
+        return jnp.sum(rank >= 0) < need
 
     def body(state: tuple[jax.Array, jax.Array]) -> tuple[jax.Array, jax.Array]:
         rank, front = state
@@ -110,8 +115,8 @@ def nondominated_rank(F: jax.Array, cv: jax.Array) -> jax.Array:
         return rank, front + 1
 
     rank0 = jnp.full((n,), -1, dtype=jnp.int32)
-    rank, _ = lax.while_loop(cond, body, (rank0, jnp.int32(0)))
-    return rank
+    rank, front = lax.while_loop(cond, body, (rank0, jnp.int32(0)))
+    return jnp.where(rank < 0, front, rank)
 
 
 def nondominated_rank_2d(F: jax.Array, cv: jax.Array) -> jax.Array:
@@ -243,23 +248,28 @@ def rank_and_crowding(F: jax.Array, cv: jax.Array) -> tuple[jax.Array, jax.Array
     return rank, crowding_distance(F, rank)
 
 
-def survive(F: jax.Array, cv: jax.Array, n_survive: int) -> jax.Array:
+def survive(F: jax.Array, cv: jax.Array, n_survive: int, return_rank: bool = False):
     """Indices of the best ``n_survive`` members by NSGA-II's crowded comparison.
 
     Order: lower constrained rank, then larger crowding distance, then lower index. Infeasible
     members are ranked after all feasible ones by total violation, so they enter in order of
-    increasing violation.
+    increasing violation. Fronts are peeled only until ``n_survive`` members are ranked
+    (`nondominated_rank` with ``stop_after``); the survivors' ranks are their ranks in the
+    whole set (removing worse members changes no better member's rank).
 
     Args:
         F: (n, m) objective values, minimised.
         cv: (n,) total violation.
         n_survive: static number of survivors, 0 <= n_survive <= n.
+        return_rank: also return the survivors' front indices.
 
     Returns:
-        (n_survive,) int32 indices into the n members, best first.
+        (n_survive,) int32 indices into the n members, best first (and their (n_survive,)
+        int32 ranks with ``return_rank``).
     """
     F, cv = jnp.asarray(F), jnp.asarray(cv)
-    rank, cd = rank_and_crowding(F, cv)
+    rank = nondominated_rank(F, cv, stop_after=n_survive)
+    cd = crowding_distance(F, rank)
     index = jnp.arange(F.shape[0])
-    order = jnp.lexsort((index, -cd, rank))
-    return order[:n_survive].astype(jnp.int32)
+    order = jnp.lexsort((index, -cd, rank))[:n_survive].astype(jnp.int32)
+    return (order, rank[order]) if return_rank else order

@@ -11,7 +11,8 @@ from scipy.stats import qmc
 
 from dockjax import DockingProblem
 from dockjax.algorithms import ZDT1, optimize
-from dockjax.algorithms.operators import bernoulli_map, bernoulli_population, levy_step, mantegna_sigma
+from dockjax.algorithms.operators import (bernoulli_map, bernoulli_population, levy_step, mantegna_sigma,
+                                         random_rank1_partner)
 from tests import reference as R
 
 
@@ -33,6 +34,20 @@ def test_levy_steps_have_the_mantegna_scale():
     rng = np.random.default_rng(1)
     ref = mantegna_sigma() * rng.normal(size=200_000) / np.abs(rng.normal(size=200_000)) ** (1 / 1.5)
     assert np.median(np.abs(s)) == pytest.approx(np.median(np.abs(ref)), rel=0.02)
+
+
+def test_rank1_partner_is_uniform_over_the_rank1_set():
+    """SPEC §7: x_j drawn at random from the current rank-1 set: never another member, and
+    each rank-1 member about equally often (chi-square, 50 draws per member and nest set)."""
+    from scipy.stats import chisquare
+
+    rank = np.array([1, 0, 2, 0, 0, 3, 1, 0, 0, 2] * 3)
+    keys = jax.random.split(jax.random.PRNGKey(0), 200)
+    with jax.enable_x64(True):
+        got = np.asarray(jax.jit(jax.vmap(random_rank1_partner, in_axes=(0, None)))(keys, rank))
+    assert np.all(rank[got] == 0)
+    counts = np.bincount(got.ravel(), minlength=len(rank))[rank == 0]
+    assert chisquare(counts).pvalue > 1e-3
 
 
 def test_bernoulli_map_is_paper_eq_31():

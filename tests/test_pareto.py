@@ -200,6 +200,22 @@ def test_rank_2d_equals_general_rank_with_ties_duplicates_and_equal_violations(p
     assert general.dtype == np.int32 and fast.dtype == np.int32
 
 
+@FAST
+@given(populations(m=2), st.sampled_from((1, 5, 16)))
+def test_rank_stop_after_keeps_the_fronts_it_needs(pop, stop_after):
+    """Peeling stops at the first front that brings the ranked count to ``stop_after``;
+    ranks up to that front are the full peel's, the rest share the next index."""
+    F, cv = pop
+    expected = peel(documented_dominance(F, cv))
+    with jax.enable_x64(True):
+        got = np.asarray(jax.jit(pareto.nondominated_rank, static_argnums=2)(F, cv, stop_after))
+    counts = np.cumsum(np.bincount(expected))
+    last = int(np.searchsorted(counts, min(stop_after, len(F))))  # front reaching the count
+    keep = expected <= last
+    np.testing.assert_array_equal(got[keep], expected[keep])
+    assert np.all(got[~keep] == last + 1)
+
+
 def test_infeasible_members_follow_last_feasible_front_by_violation():
     F = np.array([[0.0, 3.0], [1.0, 1.0], [2.0, 2.0], [-5.0, -5.0], [-5.0, -5.0], [9.0, 9.0]])
     cv = np.array([0.0, 0.0, 0.0, 0.5, 0.2, 0.2])

@@ -50,8 +50,9 @@ def random_rank1_partner(key, rank):
     """For each nest, the index of a member drawn uniformly from the rank-1 set (SPEC §7:
     ``x_j`` at random from the current non-dominated set). rank: (n,) → (n,) int32."""
     n = rank.shape[0]
-    g = jax.random.gumbel(key, (n, n))
-    return jnp.argmax(jnp.where(rank[None, :] == 0, g, -jnp.inf), axis=1).astype(jnp.int32)
+    count = jnp.cumsum(rank == 0)  # count[i]: rank-1 members among 0..i
+    j = jax.random.randint(key, (n,), 0, jnp.maximum(count[-1], 1))  # which rank-1 member
+    return jnp.searchsorted(count, j, side="right").astype(jnp.int32)  # its index
 
 
 def discovery(key, U, p_a):
@@ -116,7 +117,5 @@ def merge_and_survive(parents, children, n: int):
     rank, then crowding distance, then index (SPEC §7). Returns the survivors' Population
     and their ranks."""
     merged = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b], 0), parents, children)
-    idx = pareto.survive(merged.F, merged.cv, n)
-    pop = jax.tree_util.tree_map(lambda a: a[idx], merged)
-    rank, _ = pareto.rank_and_crowding(pop.F, pop.cv)
-    return pop, rank
+    idx, rank = pareto.survive(merged.F, merged.cv, n, return_rank=True)
+    return jax.tree_util.tree_map(lambda a: a[idx], merged), rank
