@@ -429,7 +429,8 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     (:func:`dockjax.extrema.rate_maxima`), up to :data:`SCREEN_SLOTS` of them; ``over``
     flags a candidate with more, or with a failing travel (rare: positions are smooth):
     its columns are then valid upper bounds, not necessarily within the tolerance, and it
-    is re-scored by the full path, as :func:`score_batch` does."""
+    is re-scored by the full chain on all its spans, as :func:`score_batch` does (from the
+    returned ``(span series (48, 6), span lengths (48,), right-arm remainders (8, 3))``)."""
     polys = jax.lax.optimization_barrier(_joint_polys(problem, c, h, ref))  # (6, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     low, up = extrema.span_bounds(polys, hh)  # (6, 8, 3)
@@ -454,7 +455,7 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     M = vals.reshape(up.shape).max(axis=0) + extra
     need = jnp.any(2.0 * rem > BOUND_TOLERANCE * lim[4:7])
     over = (jnp.sum(flags) > SCREEN_SLOTS) | jnp.any(fail[:, 0])
-    return M, need, over
+    return M, need, over, (polys.reshape(n_items, -1), hh.reshape(-1), extra)
 
 
 def _hessian_norms(sin_a, sin_b):
@@ -560,12 +561,23 @@ def _score(problem: DockingProblem, x, screen: bool = False):
     ref = jax.lax.optimization_barrier(span_angles(c, h))
     F = jnp.stack([T, _jerk(problem, c, h, ref)])
     if screen and problem.right_arm != "exact":
-        M, need, over = _maxima_screened(problem, c, h, ref)
+        M, need, over, spans = _maxima_screened(problem, c, h, ref)
     else:
         M, need = _maxima(problem, c, h, ref, with_need=True)
-        over = jnp.zeros((), bool)
-    G = (M / problem.limits - 1.0 + G_SAFETY).reshape(-1)
-    return F, G, need, over
+        over, spans = jnp.zeros((), bool), None
+    return F, _columns(problem, M), need, over, spans
+
+
+def _columns(problem: DockingProblem, M):
+    """G columns (..., 24) from the maxima (..., 8, 3) (SPEC §6, with the safety margin)."""
+    return (M / problem.limits - 1.0 + G_SAFETY).reshape(M.shape[:-2] + (-1,))
+
+
+def _limits_full(problem: DockingProblem, x):
+    """G (24,) of one candidate by the full root chain (no objectives: less to compile)."""
+    h, u, c = decode(problem, x)
+    ref = jax.lax.optimization_barrier(span_angles(c, h))
+    return _columns(problem, _maxima(problem, c, h, ref))
 
 
 def score(problem: DockingProblem, x):
@@ -575,20 +587,20 @@ def score(problem: DockingProblem, x):
     right-arm mode this is the exact path where the candidate needs it (both paths are
     computed: use :func:`score_batch` for populations)."""
     if problem.right_arm == "adaptive":
-        F, G, need, _ = _score(problem.with_right_arm("bound"), x)
-        _, Gx, _, _ = _score(problem.with_right_arm("exact"), x)
+        F, G, need, _, _ = _score(problem.with_right_arm("bound"), x)
+        _, Gx, _, _, _ = _score(problem.with_right_arm("exact"), x)
         return F, jnp.where(need, Gx, G)
-    F, G, _, _ = _score(problem, x)
+    F, G, _, _, _ = _score(problem, x)
     return F, G
 
 
 def _score_plain(problem: DockingProblem, X, screen: bool = False):
     # candidates along the last axis inside (X.T): XLA then streams every elementwise step
     # over contiguous candidates, about 1.3× faster than along the first
-    F, G, need, over = jax.vmap(
-        partial(_score, screen=screen), in_axes=(None, 1), out_axes=(1, 1, 0, 0)
+    F, G, need, over, spans = jax.vmap(
+        partial(_score, screen=screen), in_axes=(None, 1), out_axes=(1, 1, 0, 0, 0)
     )(problem, X.T)
-    return F.T, G.T, need, over
+    return F.T, G.T, need, over, spans
 
 
 ADAPTIVE_CHUNK = 32
@@ -600,11 +612,11 @@ SCREEN_CHUNK = 8
 """Candidates per call of the screen's overflow path (rare: small chunks waste least)."""
 
 
-def _rescore(problem: DockingProblem, X, G, mask, chunk: int = ADAPTIVE_CHUNK):
-    """Replace the rows of G where ``mask`` holds by the full root-chain path of ``problem``:
-    those rows are gathered (stable order) and scored in chunks of ``chunk`` inside a
-    ``lax.while_loop`` that stops when none is left (usually at once)."""
-    n = X.shape[0]
+def _replace_rows(G, mask, rows, chunk: int):
+    """Replace the rows of G where ``mask`` holds by ``rows(idx)`` (k, 24) for index
+    chunks of ``k = min(n, chunk)``: the flagged rows are gathered in order and scored
+    inside a ``lax.while_loop`` that stops when none is left (usually at once)."""
+    n = G.shape[0]
     k = min(n, chunk)
     # the flagged rows first, in order (a scatter: cheaper than a sort); the rest of
     # ``order`` is row 0, never reached but by the clamped last window
@@ -615,13 +627,31 @@ def _rescore(problem: DockingProblem, X, G, mask, chunk: int = ADAPTIVE_CHUNK):
     def body(carry):
         start, G = carry
         # dynamic_slice clamps the window into [0, n): a row scored twice, or one that was
-        # not flagged, gets the full path's values, which are valid too
+        # not flagged, gets the dear path's values, which are valid too
         idx = jax.lax.dynamic_slice(order, (start,), (k,))
-        _, Gx, _, _ = _score_plain(problem, X[idx])
-        return start + k, G.at[idx].set(Gx)
+        return start + k, G.at[idx].set(rows(idx))
 
     _, G = jax.lax.while_loop(lambda c: c[0] < count, body, (jnp.zeros((), count.dtype), G))
     return G
+
+
+def _exact_path_rows(problem: DockingProblem, X):
+    """``rows`` for :func:`_replace_rows`: G by the ``"exact"`` right-arm path."""
+    exact = problem.with_right_arm("exact")
+    return lambda idx: jax.vmap(partial(_limits_full, exact), in_axes=1, out_axes=1)(X[idx].T).T
+
+
+def _full_chain_rows(problem: DockingProblem, spans):
+    """``rows`` for :func:`_replace_rows`: G from every span of the screen's stored series
+    through the full root chain (the screen's overflow; no re-decoding)."""
+    series, lengths, extra = spans
+
+    def rows(idx):
+        vals, _ = extrema.span_maxima(series[idx], lengths[idx])  # (k, 48, 3)
+        M = vals.reshape(idx.shape[0], config.N_INTERVALS, -1, 3).max(axis=1) + extra[idx]
+        return _columns(problem, M)
+
+    return rows
 
 
 def score_batch(problem: DockingProblem, X, screen: bool = True):
@@ -635,15 +665,17 @@ def score_batch(problem: DockingProblem, X, screen: bool = True):
 
     ``"adaptive"`` right arm: every candidate is scored by the bound path; those whose own
     overstatement bound exceeds :data:`BOUND_TOLERANCE` are re-scored by the exact path
-    (see :func:`_rescore`), so the dear path costs only what is needed (usually nothing).
+    (see :func:`_replace_rows`), so the dear path costs only what is needed (usually
+    nothing).
     """
     mode = "bound" if problem.right_arm == "adaptive" else problem.right_arm
-    F, G, need, over = _score_plain(problem.with_right_arm(mode), X, screen)
-    if screen and mode == "bound":
+    bound = problem.with_right_arm(mode)
+    F, G, need, over, spans = _score_plain(bound, X, screen)
+    if spans is not None:
         over = over & ~need if problem.right_arm == "adaptive" else over
-        G = _rescore(problem.with_right_arm(mode), X, G, over, SCREEN_CHUNK)
+        G = _replace_rows(G, over, _full_chain_rows(bound, spans), SCREEN_CHUNK)
     if problem.right_arm == "adaptive":
-        G = _rescore(problem.with_right_arm("exact"), X, G, need)
+        G = _replace_rows(G, need, _exact_path_rows(problem, X), ADAPTIVE_CHUNK)
     return F, G
 
 
