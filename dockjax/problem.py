@@ -269,7 +269,7 @@ class DockingProblem:
         Returns ``F`` (n, 2) ``[T, jerk]`` and ``G`` (n, 24) as float64 NumPy arrays.
         ``precision="float32"`` runs the same kernel in single precision (faster, about
         1e-5 relative; for screening only). ``screen=False`` sends every knot span through
-        the exact root chain (about 3× slower): every column is then exact to rounding,
+        the exact root chain (about 2.5× slower): every column is then exact to rounding,
         instead of exact near its limit (within 5 %) and at most 0.009 above the truth
         elsewhere (SPEC §6 allows 0.01); see :func:`score_batch`.
         """
@@ -415,7 +415,7 @@ SCREEN_SLACK = 0.009
 
 def _maxima_screened(problem: DockingProblem, c, h, ref):
     """The maxima of :func:`_maxima` (bound treatment of the right arm) for a fraction of
-    the cost. → ``(M (8, 3), need, over)``.
+    the cost. → ``(M (8, 3), need, over, spans)``.
 
     Every span gets the cheap two-sided estimates of :func:`dockjax.extrema.span_bounds`
     (``L <= max <= U``). A column's value is the largest span value, so a span whose U is
@@ -660,7 +660,7 @@ def score_batch(problem: DockingProblem, X, screen: bool = True):
     ``screen`` (default): the limit columns come from :func:`_maxima_screened` (cheap
     bounds everywhere, the exact root chain on the few spans that need it); candidates
     with more such spans than the screen's slots are re-scored by the full path.
-    ``screen=False``: every span through the root chain (about 3× dearer; every column
+    ``screen=False``: every span through the root chain (about 2.5× dearer; every column
     exact to rounding).
 
     ``"adaptive"`` right arm: every candidate is scored by the bound path; those whose own
