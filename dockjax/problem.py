@@ -268,7 +268,7 @@ class DockingProblem:
         X: (n, n_var) decision vectors in natural units (SPEC §3 order; not clipped).
         Returns ``F`` (n, 2) ``[T, jerk]`` and ``G`` (n, 24) as float64 NumPy arrays.
         ``precision="float32"`` runs the same kernel in single precision (faster, about
-        1e-5 relative; for screening only). ``screen=False`` sends every knot span through
+        1e-5 relative; for quick looks only). ``screen=False`` sends every knot span through
         the exact root chain (about 2.5× slower): every column is then exact to rounding,
         instead of exact near its limit (within 5 %) and at most 0.009 above the truth
         elsewhere (SPEC §6 allows 0.01); see :func:`score_batch`.
