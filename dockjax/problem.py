@@ -276,6 +276,8 @@ class DockingProblem:
         arr = self.check_population(X)
         if precision not in ("float64", "float32"):
             raise ValueError(f"precision must be 'float64' or 'float32', got {precision!r}")
+        if not isinstance(screen, (bool, np.bool_)):
+            raise ValueError(f"screen must be True or False, got {screen!r}")
         n = arr.shape[0]
         # pad to a bucket of rows (copies of row 0, dropped again): populations of nearby
         # sizes share one compiled shape

@@ -128,6 +128,14 @@ def test_non_finite_X_raises(problem, value, shown):
         problem.evaluate(X)
 
 
+@pytest.mark.parametrize(("kw", "match"), [({"precision": "float16"}, "precision"), ({"screen": "no"}, "screen"),
+                                           ({"screen": 1}, "screen")])
+def test_bad_evaluate_options_raise(problem, kw, match):
+    X = np.tile((problem.lower + problem.upper) / 2, (3, 1))
+    with pytest.raises(ValueError, match=match):
+        problem.evaluate(X, **kw)
+
+
 def test_reduced_X_of_full_width_raises():
     p = DockingProblem(reduced=True)
     with pytest.raises(ValueError, match=r"(?s)X.*6"):
