@@ -218,12 +218,6 @@ SAMPLES = (8, 16, 8)
 acceleration (the velocity limits bind in the paper's problem, so it gets the finest grid)."""
 
 
-def _derivative_terms(terms, order):
-    for _ in range(order):
-        terms = [terms[p + 1] * (p + 1) for p in range(len(terms) - 1)]
-    return terms
-
-
 def _sampled_max(terms, m):
     """max over s = i/m, i = 0..m, of |Σ_p terms[p] s^p| (elementwise; constants folded)."""
     out = None
@@ -268,7 +262,10 @@ def span_bounds(c, h):
         hp = hp * h
     ih = 1.0 / h
     mp, mv, ma = SAMPLES
-    vel, acc, jerk, snap = (_derivative_terms(terms, k) for k in (1, 2, 3, 4))
+    scaled = jnp.stack(terms, -1)
+    vel, acc, jerk, snap = (
+        [d[..., p] for p in range(d.shape[-1])] for d in (poly_derivative(scaled, k) for k in (1, 2, 3, 4))
+    )
     lp = _sampled_max(terms, mp)
     lv = _sampled_max(vel, mv) * ih
     la = _sampled_max(acc, ma) * ih * ih

@@ -54,7 +54,7 @@ import optax
 
 from . import bspline, config
 from .metrics import nondominated_points
-from .problem import (GAUSS_NODES, G_SAFETY, DockingProblem, _maxima, _maxima_screened, bucket_rows, decode,
+from .problem import (GAUSS_NODES, DockingProblem, _columns, _maxima, _maxima_screened, bucket_rows, decode,
                       right_jets, span_angles)
 
 __all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
@@ -141,8 +141,7 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
         M = _maxima_screened(problem, c, h, ref)[0]
     else:
         M = _maxima(problem, c, h, ref)
-    G = (M / problem.limits - 1.0 + G_SAFETY).reshape(-1)
-    return F, G
+    return F, _columns(problem, M)
 
 
 # -- projection onto the box with a time cap ----------------------------------------------
