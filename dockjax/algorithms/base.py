@@ -7,7 +7,13 @@ style of optax/evosax::
     init(key, problem, params) -> State
     step(state, problem, params) -> State
 
-``run(algorithm, key, problem, params, n_iter)`` drives ``step`` with ``lax.scan``; it jits,
+each the composition of an ask/tell pair around one evaluation of ``pop_size`` candidates
+(in the style of evosax)::
+
+    init_ask(key, problem, params) -> (U, key)      init_tell(key, pop, params) -> State
+    ask(state, problem, params) -> (U, state)       tell(state, pop, params) -> State
+
+``run(algorithm, key, problem, params, n_iter)`` drives them with ``lax.scan``; it jits,
 and ``jax.vmap`` over keys or over ``Params`` leaves (ρ, α_max, …) runs many runs in one
 compiled call. All algorithms search in the unit box (SPEC §7) and evaluate exactly
 ``pop_size`` new candidates per iteration (equal budgets).
@@ -167,16 +173,36 @@ def run(
 ):
     """Initialise and iterate ``n_iter`` steps with ``lax.scan`` (traceable; jit it).
 
+    The loop is ``init`` followed by ``n_iter`` ``step``s, written so that the problem's
+    kernel appears once in the compiled program (it is the dear part to compile): the scan
+    runs ``n_iter + 1`` times, and each pass asks for candidates (the initial population in
+    pass 0, the algorithm's ``ask`` after), scores them, and hands the scores back
+    (``init_tell`` in pass 0, ``tell`` after). The result is the same as ``init`` then
+    ``step`` repeated.
+
     ``history(state) -> pytree`` is recorded after every step (e.g. the hypervolume of the
     current population) without leaving the compiled loop. Returns ``(state, trace)``.
     """
-    state = algorithm.init(key, problem, params)
+    U0, key0 = algorithm.init_ask(key, problem, params)
+    n = U0.shape[0]
+    blank = Population(
+        U=U0, F=jnp.zeros((n, problem.n_obj), U0.dtype), G=jnp.zeros((n, problem.n_con), U0.dtype),
+        cv=jnp.zeros((n,), U0.dtype),
+    )
+    state = algorithm.init_tell(key0, blank, params)  # a placeholder of the state's shape
 
-    def body(s, _):
-        s = algorithm.step(s, problem, params)
+    def body(s, i):
+        first = i == 0  # not batched under vmap, so the conds stay branches
+        U, s = jax.lax.cond(first, lambda s: (U0, s), lambda s: algorithm.ask(s, problem, params), s)
+        pop = evaluate_unit(problem, U)
+        s = jax.lax.cond(
+            first, lambda s, p: algorithm.init_tell(key0, p, params),
+            lambda s, p: algorithm.tell(s, p, params), s, pop,
+        )
         return s, (history(s) if history is not None else None)
 
-    return jax.lax.scan(body, state, None, length=n_iter)
+    state, trace = jax.lax.scan(body, state, jnp.arange(n_iter + 1))
+    return state, jax.tree_util.tree_map(lambda a: a[1:], trace)
 
 
 def replace(obj, **changes):

@@ -15,12 +15,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .base import check_range, pytree_dataclass, static, validate_common
-from .mocs import State, _initial_state, cuckoo_step
+from .base import check_range, evaluate_unit, pytree_dataclass, static, validate_common
+from .mocs import State, cuckoo_ask, init_tell, tell
 from .mocs import final_population as final_population
 from .operators import bernoulli_population
 
-__all__ = ["Params", "State", "init", "step", "validate", "final_population", "step_size"]
+__all__ = [
+    "Params", "State", "init", "step", "init_ask", "init_tell", "ask", "tell", "validate",
+    "final_population", "step_size",
+]
 
 
 @pytree_dataclass
@@ -52,15 +55,26 @@ def step_size(iteration, params: Params):
     return params.alpha_max * (1.0 - frac * frac)
 
 
-def init(key, problem, params: Params) -> State:
-    """Chaotic nests (Eqs. 31–32), evaluated."""
+def init_ask(key, problem, params: Params):
+    """Chaotic nests (Eqs. 31–32). → ``(U, key)``."""
     k_init, key = jax.random.split(key)
     dtype = jnp.zeros(()).dtype
-    U = bernoulli_population(k_init, params.pop_size, problem.n_var, params.rho, dtype)
-    return _initial_state(key, problem, U)
+    return bernoulli_population(k_init, params.pop_size, problem.n_var, params.rho, dtype), key
+
+
+def ask(state: State, problem, params: Params):
+    """The children of one IMOCS iteration (adaptive α₀ of Eq. 33). → ``(U, state)``."""
+    alpha = step_size(state.iteration.astype(state.pop.U.dtype), params)
+    return cuckoo_ask(state, alpha, params.p_a)
+
+
+def init(key, problem, params: Params) -> State:
+    """Chaotic nests (Eqs. 31–32), evaluated."""
+    U, key = init_ask(key, problem, params)
+    return init_tell(key, evaluate_unit(problem, U), params)
 
 
 def step(state: State, problem, params: Params) -> State:
-    """One IMOCS iteration (adaptive α₀ of Eq. 33)."""
-    alpha = step_size(state.iteration.astype(state.pop.U.dtype), params)
-    return cuckoo_step(state, problem, alpha, params.p_a, params.pop_size)
+    """One IMOCS iteration: :func:`ask`, evaluate the n children, :func:`tell`."""
+    U, state = ask(state, problem, params)
+    return tell(state, evaluate_unit(problem, U), params)

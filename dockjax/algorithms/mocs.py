@@ -23,10 +23,15 @@ import jax
 import jax.numpy as jnp
 
 from .. import pareto
-from .base import Population, check_range, evaluate_unit, pytree_dataclass, static, validate_common
+from .base import (
+    Population, check_range, evaluate_unit, pytree_dataclass, replace, static, validate_common,
+)
 from .operators import discovery, levy_step, merge_and_survive, random_rank1_partner
 
-__all__ = ["Params", "State", "init", "step", "validate", "final_population", "cuckoo_step"]
+__all__ = [
+    "Params", "State", "init", "step", "init_ask", "init_tell", "ask", "tell", "validate",
+    "final_population", "cuckoo_ask",
+]
 
 
 @pytree_dataclass
@@ -56,35 +61,52 @@ def validate(problem, params: Params) -> None:
     check_range("p_a", params.p_a, 0.0, 1.0)
 
 
-def _initial_state(key, problem, U) -> State:
-    pop = evaluate_unit(problem, U)
+def init_ask(key, problem, params: Params):
+    """Uniform random nests in the unit box (SPEC §7). → ``(U, key)``."""
+    k_init, key = jax.random.split(key)
+    dtype = jnp.zeros(()).dtype
+    return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
+
+
+def init_tell(key, pop: Population, params: Params) -> State:
+    """The state of the scored initial nests."""
     rank, _ = pareto.rank_and_crowding(pop.F, pop.cv)
     return State(key=key, pop=pop, rank=rank, iteration=jnp.zeros((), jnp.int32))
 
 
-def init(key, problem, params: Params) -> State:
-    """Uniform random nests in the unit box (SPEC §7), evaluated."""
-    k_init, key = jax.random.split(key)
-    dtype = jnp.zeros(()).dtype
-    U = jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype)
-    return _initial_state(key, problem, U)
-
-
-def cuckoo_step(state: State, problem, alpha, p_a, pop_size: int) -> State:
-    """One cuckoo iteration with Lévy step factor ``alpha`` (shared by MOCS and IMOCS)."""
+def cuckoo_ask(state: State, alpha, p_a):
+    """The n children of one cuckoo iteration with Lévy step factor ``alpha`` (shared by
+    MOCS and IMOCS): Lévy flight towards rank-1 partners, then discovery. → ``(U, state)``."""
     key, k_partner, k_levy, k_disc = jax.random.split(state.key, 4)
     U = state.pop.U
     partner = random_rank1_partner(k_partner, state.rank)
     moved = U + alpha * levy_step(k_levy, U.shape, U.dtype) * (U[partner] - U)
     moved = jnp.clip(moved, 0.0, 1.0)
     children = jnp.clip(discovery(k_disc, moved, p_a), 0.0, 1.0)
-    pop, rank = merge_and_survive(state.pop, evaluate_unit(problem, children), pop_size)
-    return State(key=key, pop=pop, rank=rank, iteration=state.iteration + 1)
+    return children, replace(state, key=key)
+
+
+def ask(state: State, problem, params: Params):
+    """The children of one MOCS iteration (fixed α₀). → ``(U, state)``."""
+    return cuckoo_ask(state, params.alpha0, params.p_a)
+
+
+def tell(state: State, children: Population, params: Params) -> State:
+    """Merge the scored children with their parents; the best ``pop_size`` survive."""
+    pop, rank = merge_and_survive(state.pop, children, params.pop_size)
+    return State(key=state.key, pop=pop, rank=rank, iteration=state.iteration + 1)
+
+
+def init(key, problem, params: Params) -> State:
+    """Uniform random nests in the unit box (SPEC §7), evaluated."""
+    U, key = init_ask(key, problem, params)
+    return init_tell(key, evaluate_unit(problem, U), params)
 
 
 def step(state: State, problem, params: Params) -> State:
-    """One MOCS iteration (fixed α₀)."""
-    return cuckoo_step(state, problem, params.alpha0, params.p_a, params.pop_size)
+    """One MOCS iteration: :func:`ask`, evaluate the n children, :func:`tell`."""
+    U, state = ask(state, problem, params)
+    return tell(state, evaluate_unit(problem, U), params)
 
 
 def final_population(state: State) -> Population:

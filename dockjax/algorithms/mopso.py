@@ -50,13 +50,19 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import pareto
-from .base import Population, check_range, evaluate_unit, pytree_dataclass, static, validate_common
+from .base import (
+    Population, check_range, evaluate_unit, pytree_dataclass, replace, static, validate_common,
+)
 
 __all__ = [
     "Params",
     "State",
     "init",
     "step",
+    "init_ask",
+    "init_tell",
+    "ask",
+    "tell",
     "validate",
     "final_population",
     "grid_coordinates",
@@ -226,19 +232,21 @@ def _pbest_update(key, pbest: Population, new: Population) -> Population:
     )
 
 
-def init(key, problem, params: Params) -> State:
-    """Uniform random particles in the unit box, at rest; pbest = the particles; the
-    repository their constrained non-dominated members (``pop_size`` evaluations)."""
+def init_ask(key, problem, params: Params):
+    """Uniform random particles in the unit box. → ``(U, key)``."""
     k_init, key = jax.random.split(key)
     dtype = jnp.zeros(()).dtype
-    n = params.pop_size
-    U = jax.random.uniform(k_init, (n, problem.n_var), dtype)
-    pop = evaluate_unit(problem, U)
-    repo, valid = update_repository(pop, jnp.zeros((n,), bool), pop, params.n_div)
+    return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
+
+
+def init_tell(key, pop: Population, params: Params) -> State:
+    """The scored particles at rest; pbest = the particles; the repository their
+    constrained non-dominated members."""
+    repo, valid = update_repository(pop, jnp.zeros((params.pop_size,), bool), pop, params.n_div)
     return State(
         key=key,
         pop=pop,
-        velocity=jnp.zeros_like(U),
+        velocity=jnp.zeros_like(pop.U),
         pbest=pop,
         repository=repo,
         archive_valid=valid,
@@ -246,9 +254,10 @@ def init(key, problem, params: Params) -> State:
     )
 
 
-def step(state: State, problem, params: Params) -> State:
-    """One MOPSO iteration: leaders, flight, bounds, mutation, evaluation, archives."""
-    key, k_lead, k_r, k_mut, k_pb = jax.random.split(state.key, 5)
+def ask(state: State, problem, params: Params):
+    """The particles' next positions: leaders, flight, bounds, mutation. → ``(U, state)``
+    (the state carries the new velocities)."""
+    key, k_lead, k_r, k_mut = jax.random.split(state.key, 4)
     n = params.pop_size
     X = state.pop.U
     leader = state.repository.U[_select_leaders(k_lead, state.repository, state.archive_valid,
@@ -260,17 +269,35 @@ def step(state: State, problem, params: Params) -> State:
     X = jnp.clip(X, 0.0, 1.0)
     v = jnp.where(out, -v, v)
     X = _mutate(k_mut, X, state.iteration.astype(X.dtype), params.max_iter, params.p_m)
-    pop = evaluate_unit(problem, X)
+    return X, replace(state, key=key, velocity=v)
+
+
+def tell(state: State, pop: Population, params: Params) -> State:
+    """The scored particles update their personal bests and the repository."""
+    key, k_pb = jax.random.split(state.key)
     repo, valid = update_repository(state.repository, state.archive_valid, pop, params.n_div)
     return State(
         key=key,
         pop=pop,
-        velocity=v,
+        velocity=state.velocity,
         pbest=_pbest_update(k_pb, state.pbest, pop),
         repository=repo,
         archive_valid=valid,
         iteration=state.iteration + 1,
     )
+
+
+def init(key, problem, params: Params) -> State:
+    """Uniform random particles in the unit box, at rest, evaluated (``pop_size``
+    evaluations)."""
+    U, key = init_ask(key, problem, params)
+    return init_tell(key, evaluate_unit(problem, U), params)
+
+
+def step(state: State, problem, params: Params) -> State:
+    """One MOPSO iteration: :func:`ask`, evaluation, :func:`tell`."""
+    U, state = ask(state, problem, params)
+    return tell(state, evaluate_unit(problem, U), params)
 
 
 def final_population(state: State) -> Population:

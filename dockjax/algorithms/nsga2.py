@@ -33,10 +33,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import pareto
-from .base import Population, check_range, evaluate_unit, pytree_dataclass, static, validate_common
+from .base import (
+    Population, check_range, evaluate_unit, pytree_dataclass, replace, static, validate_common,
+)
 from .variation import binary_tournament, polynomial_mutation, sbx
 
-__all__ = ["Params", "State", "init", "step", "validate", "final_population"]
+__all__ = [
+    "Params", "State", "init", "step", "init_ask", "init_tell", "ask", "tell", "validate",
+    "final_population",
+]
 
 
 @pytree_dataclass
@@ -84,16 +89,20 @@ def _with_ranks(key, pop: Population) -> State:
     return State(key=key, pop=pop, rank=rank, crowding=crowding, iteration=jnp.zeros((), jnp.int32))
 
 
-def init(key, problem, params: Params) -> State:
-    """Uniform random population in the unit box, evaluated (``pop_size`` evaluations)."""
+def init_ask(key, problem, params: Params):
+    """Uniform random population in the unit box. → ``(U, key)``."""
     k_init, key = jax.random.split(key)
     dtype = jnp.zeros(()).dtype
-    U = jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype)
-    return _with_ranks(key, evaluate_unit(problem, U))
+    return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
 
 
-def step(state: State, problem, params: Params) -> State:
-    """One generation: tournament, SBX, mutation, evaluation of n children, survival."""
+def init_tell(key, pop: Population, params: Params) -> State:
+    """The state of the scored initial population (ranks and crowding for the tournament)."""
+    return _with_ranks(key, pop)
+
+
+def ask(state: State, problem, params: Params):
+    """The n children of one generation: tournament, SBX, mutation. → ``(U, state)``."""
     key, k_sel, k_cross, k_mut = jax.random.split(state.key, 4)
     n = params.pop_size
     U = state.pop.U
@@ -104,15 +113,32 @@ def step(state: State, problem, params: Params) -> State:
     children = jnp.concatenate([child_a, child_b], axis=0)[:n]
     p_m = jnp.where(params.p_m < 0, 1.0 / U.shape[1], params.p_m)
     children = jnp.clip(polynomial_mutation(k_mut, children, params.eta_m, p_m), 0.0, 1.0)
-    offspring = evaluate_unit(problem, children)
+    return children, replace(state, key=key)
 
+
+def tell(state: State, offspring: Population, params: Params) -> State:
+    """Merge the scored children with the parents; the best n survive (constrained rank,
+    then crowding), with their recomputed rank and crowding distance."""
     merged = jax.tree_util.tree_map(
         lambda a, b: jnp.concatenate([a, b], axis=0), state.pop, offspring
     )
-    keep = pareto.survive(merged.F, merged.cv, n)
+    keep = pareto.survive(merged.F, merged.cv, params.pop_size)
     pop = jax.tree_util.tree_map(lambda a: a[keep], merged)
     rank, crowding = pareto.rank_and_crowding(pop.F, pop.cv)
-    return State(key=key, pop=pop, rank=rank, crowding=crowding, iteration=state.iteration + 1)
+    return State(key=state.key, pop=pop, rank=rank, crowding=crowding, iteration=state.iteration + 1)
+
+
+def init(key, problem, params: Params) -> State:
+    """Uniform random population in the unit box, evaluated (``pop_size`` evaluations)."""
+    U, key = init_ask(key, problem, params)
+    return init_tell(key, evaluate_unit(problem, U), params)
+
+
+def step(state: State, problem, params: Params) -> State:
+    """One generation: :func:`ask` (tournament, SBX, mutation), evaluation of the n
+    children, :func:`tell` (survival)."""
+    U, state = ask(state, problem, params)
+    return tell(state, evaluate_unit(problem, U), params)
 
 
 def final_population(state: State) -> Population:
