@@ -510,35 +510,45 @@ def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 4):
     value plus twice the last Newton correction ``Q'²/|Q''|`` (quadratic convergence makes
     it an overstatement of the remaining error), and the span ends. → (3 joints, 3)."""
     inner = jnp.concatenate([times[0][0][:, 4:7, 1:5], times[1][0][:, 4:7, 1:4], times[2][:, 4:7, 1:3]], -1)
-    kind = np.array([0] * 4 + [1] * 3 + [2] * 2)
+    kind = np.array([0] * 4 + [1] * 3 + [2] * 2)  # the quantity each of the 9 points is a root for
+    n_pts = kind.size
+    diag = np.arange(3)
+
+    def jets_at(pts):
+        """Derivatives 0..4 of joint r at its own points pts[:, r]: (6, 3, 9) → (6, 3, 9, 5)
+        (all three joints at all 27 points in one call, then each joint's own)."""
+        d = jets.derivatives(right_jets(problem, c, pts.reshape(pts.shape[0], -1), 4, (0, 1, 2), ref))
+        return d.reshape(pts.shape[0], 3, n_pts, 3, -1)[:, diag, :, diag].swapaxes(0, 1)
+
+    def pick(d, i):  # derivative kind + i at each point: (6, 3, 9)
+        return d[:, :, np.arange(n_pts), kind + i]
+
+    def newton_step(_, carry):
+        pts, d = carry
+        q1, q2 = pick(d, 1), pick(d, 2)
+        # the points carry no gradient (envelope theorem, see extrema.chain_extrema)
+        pts = jax.lax.stop_gradient(
+            jnp.clip(pts - jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0), 0.0, h[:, None, None]))
+        return pts, jets_at(pts)
+
+    d = jets_at(inner)
+    first = pick(d, 0)
+    _, d = jax.lax.fori_loop(0, newton, newton_step, (inner, d))
+    q0, q1, q2 = pick(d, 0), pick(d, 1), pick(d, 2)
+    step = jnp.abs(jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0))
+    extra = jnp.where(step <= 1e-5 * h[:, None, None], jnp.abs(q1) * step, 0.0)
     ends = jnp.stack([jnp.zeros_like(h), h], -1)  # (6, 2)
+    end = jets.derivatives(right_jets(problem, c, ends, 2, (0, 1, 2), ref))  # (6, 2, 3 joints, 3)
+    home = problem.home[4:7]
     right = []
-    for r in range(3):
-        jet_at = lambda t: jets.derivatives(right_jets(problem, c, t, 4, (r,), ref)[..., 0, :])  # noqa: E731
-        pick = lambda d, i: jnp.stack([d[:, j, k + i] for j, k in enumerate(kind)], -1)  # noqa: E731
-        pts = inner[:, r]  # (6, 9)
-        d = jet_at(pts)
-        first = pick(d, 0)
-        for _ in range(newton):
-            q1, q2 = pick(d, 1), pick(d, 2)
-            # the points carry no gradient (envelope theorem, see extrema.chain_extrema)
-            pts = jax.lax.stop_gradient(
-                jnp.clip(pts - jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0), 0.0, h[:, None]))
-            d = jet_at(pts)
-        q0, q1, q2 = pick(d, 0), pick(d, 1), pick(d, 2)
-        step = jnp.abs(jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0))
-        extra = jnp.where(step <= 1e-5 * h[:, None], jnp.abs(q1) * step, 0.0)
-        end = jets.derivatives(right_jets(problem, c, ends, 2, (r,), ref)[..., 0, :])  # (6, 2, 3)
-        shift = jnp.where(kind == 0, problem.home[4 + r], 0.0)
-        cols = []
-        for k in range(3):
-            sel = kind == k
-            vals = jnp.concatenate(
-                [jnp.abs(first[:, sel] - shift[sel]), jnp.abs(q0[:, sel] - shift[sel]) + extra[:, sel],
-                 jnp.abs(end[..., k] - (problem.home[4 + r] if k == 0 else 0.0))], 1)
-            cols.append(vals.max())
-        right.append(jnp.stack(cols))
-    return jnp.stack(right)
+    for k in range(3):
+        sel = kind == k
+        shift = home[:, None] if k == 0 else 0.0
+        vals = jnp.concatenate(
+            [jnp.abs(first[:, :, sel] - shift), jnp.abs(q0[:, :, sel] - shift) + extra[:, :, sel],
+             jnp.abs(end[..., k] - (home if k == 0 else 0.0)).swapaxes(1, 2)], 2)  # (6, 3, ·)
+        right.append(vals.max(axis=(0, 2)))
+    return jnp.stack(right, axis=1)
 
 
 def _jerk(problem: DockingProblem, c, h, ref):
