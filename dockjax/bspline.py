@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 
 import jax.numpy as jnp
+import numpy as np
 
 DEGREE = 5
 N_CTRL = 11
@@ -66,16 +67,20 @@ def line_control_points(start, goal):
     return start + s * (goal - start)
 
 
-def basis_functions(u, span: int, degree: int, t):
-    """The ``degree + 1`` nonzero basis functions ``N_{span−degree..span, degree}(t)`` (Eq. 16).
+def basis_functions(u, spans, t, degree: int):
+    """The nonzero basis functions of every degree 0..``degree`` (Eq. 16) at points t.
 
     Cox–de Boor recursion in the triangular form of Piegl & Tiller, *The NURBS Book*,
-    Algorithm A2.2. ``span`` is a static index with ``u[span] <= t <= u[span + 1]`` and
-    ``u[span] < u[span + 1]``, so no denominator vanishes. u: (m,), t: scalar → (degree+1,).
+    Algorithm A2.2, vectorised over points: ``spans`` (static integer array) holds each
+    point's knot span, ``u[span] <= t <= u[span + 1]`` with ``u[span] < u[span + 1]``, so
+    no denominator vanishes. u: (m,), t: shaped like ``spans`` → a list whose entry q is
+    the ``q + 1`` functions ``N_{span−q..span, q}(t)`` (each shaped like t) of degree q.
     """
-    left = [t - u[span + 1 - j] for j in range(1, degree + 1)]
-    right = [u[span + j] - t for j in range(1, degree + 1)]
+    spans = np.asarray(spans)
+    left = [t - u[spans + 1 - j] for j in range(1, degree + 1)]
+    right = [u[spans + j] - t for j in range(1, degree + 1)]
     n = [jnp.ones_like(t)]
+    out = [n]
     for j in range(1, degree + 1):
         saved = jnp.zeros_like(t)
         new = []
@@ -85,23 +90,29 @@ def basis_functions(u, span: int, degree: int, t):
             saved = left[j - r - 1] * temp
         new.append(saved)
         n = new
-    return jnp.stack(n)
+        out.append(n)
+    return out
 
 
-def derivative_control_points(ctrl, u, order: int):
-    """Control points of the ``order``-th derivative spline (Eq. 22, repeated).
-
+def _derivative_levels(ctrl, u, order: int):
+    """Control points of the derivative splines of orders 0..order (Eq. 22, repeated):
     ``P^(m)_i = (p − m + 1)(P^(m−1)_{i+1} − P^(m−1)_i) / (u_{i+p+1} − u_{i+m})``; the
-    derivative of order m has degree ``p − m`` on the knots ``u[m : len(u) − m]`` (Eq. 23).
-    ctrl: (11, d), u: (17,) → (11 − order, d).
-    """
+    derivative of order m has degree ``p − m`` on the knots ``u[m : len(u) − m]`` (Eq. 23)."""
     p = DEGREE
     q = ctrl
+    levels = [q]
     for m in range(1, order + 1):
         n = q.shape[0] - 1
         den = u[p + 1 : p + 1 + n] - u[m : m + n]
         q = (p - m + 1) * (q[1:] - q[:-1]) / den[:, None]
-    return q
+        levels.append(q)
+    return levels
+
+
+def derivative_control_points(ctrl, u, order: int):
+    """Control points of the ``order``-th derivative spline (Eq. 22, repeated).
+    ctrl: (11, d), u: (17,) → (11 − order, d)."""
+    return _derivative_levels(ctrl, u, order)[-1]
 
 
 def span_coefficients(ctrl, u):
@@ -110,26 +121,22 @@ def span_coefficients(ctrl, u):
     Returns ``c`` (6, 6, d): on span k, ``p(t) = Σ_m c[k, m] τ^m`` with ``τ = t − u[5 + k]``;
     ``c[k, m] = p^(m)(u[5+k]) / m!`` from the derivative control points of Eq. 22 evaluated
     with the basis of Eq. 16 (Eq. 21). ctrl: (11, d), u: (17,).
+
+    The derivative of order m has degree ``p − m`` on the knots ``u[m : 17 − m]``, where
+    the left knot of span k has index ``p + k − m``: its basis there is the degree-``p − m``
+    stage of one Cox–de Boor triangle over the six left knots, with the same knot
+    differences for every m.
     """
     p = DEGREE
-    derivs = [ctrl] + [derivative_control_points(ctrl, u, m) for m in range(1, p + 1)]
-    out = []
-    for k in range(N_SPANS):
-        j = p + k  # span index in the full knot vector
-        a = u[j]
-        coeffs = []
-        for m in range(p + 1):
-            deg = p - m
-            um = u[m : N_KNOTS - m]
-            if deg == 0:
-                val = derivs[m][k]
-            else:
-                nb = basis_functions(um, j - m, deg, a)
-                # elementwise (fuses): a tiny matrix product per candidate is slow on CPU
-                val = sum(nb[i] * derivs[m][k + i] for i in range(deg + 1))
-            coeffs.append(val / math.factorial(m))
-        out.append(jnp.stack(coeffs))
-    return jnp.stack(out)
+    k = np.arange(N_SPANS)
+    bases = basis_functions(u, p + k, u[p + k], p)
+    coeffs = []
+    for m, q in enumerate(_derivative_levels(ctrl, u, p)):
+        nb = bases[p - m]
+        # elementwise over the span's p − m + 1 control points (fuses; no tiny matmuls)
+        val = sum(nb[i][:, None] * q[i : i + N_SPANS] for i in range(p - m + 1))
+        coeffs.append(val / math.factorial(m))
+    return jnp.stack(coeffs, axis=1)
 
 
 def poly_derivative(c, order: int = 1):
