@@ -46,6 +46,14 @@ def _numpy_maxima(c, h):
 coef = st.floats(-10.0, 10.0, allow_nan=False)
 
 
+@jax.jit
+def _all_bounds(c, h):
+    """L, U, the full root chain and the rate chain of one quintic: one compiled program
+    (each hypothesis example would otherwise dispatch hundreds of eager ops)."""
+    low, up = extrema.span_bounds(c, h)
+    return low, up, extrema.span_maxima(c, h)[0], extrema.rate_maxima(c, h)
+
+
 @settings(max_examples=60, deadline=None)
 @given(c=st.lists(coef, min_size=6, max_size=6), h=st.floats(0.2, 12.0), scale=st.sampled_from([1.0, 1e-2, 1e-4]))
 @example(c=[0.0, 0.0, 1.0, 0.0, -1.0, 1.6885950388683538e-64], h=1.0, scale=1.0)  # found by hypothesis
@@ -55,9 +63,7 @@ def test_span_bounds_bracket_numpy_maxima(c, h, scale):
     # powers scaled so that every derivative matters on [0, h]
     c = np.asarray(c) * scale ** np.arange(6) / np.maximum(h, 1.0) ** np.arange(6)
     with jax.enable_x64(True):
-        low, up = (np.asarray(a) for a in extrema.span_bounds(jnp.asarray(c), jnp.asarray(h)))
-        exact = np.asarray(extrema.span_maxima(jnp.asarray(c), jnp.asarray(h))[0])
-        rate = np.asarray(extrema.rate_maxima(jnp.asarray(c), jnp.asarray(h)))
+        low, up, exact, rate = (np.asarray(a) for a in _all_bounds(jnp.asarray(c), jnp.asarray(h)))
     ref = _numpy_maxima(c, h)
     tol = 1e-9 * ref + 1e-14
     assert np.all(low <= ref + tol), (low, ref)
