@@ -39,6 +39,7 @@ __all__ = [
     "poly_derivative",
     "poly_eval",
     "poly_taylor",
+    "poly_taylor_terms",
     "evaluate",
 ]
 
@@ -155,11 +156,12 @@ def poly_eval(c, x):
     return out
 
 
-def poly_taylor(c, x, order: int | None = None):
-    """Normalised Taylor coefficients ``p^(k)(x)/k!``, k = 0..order, of a power series at x.
+def poly_taylor_terms(c, x, order: int | None = None) -> list:
+    """Normalised Taylor coefficients ``p^(k)(x)/k!``, k = 0..order, of a power series at x,
+    as a list of arrays (a jet, :mod:`dockjax.jets`).
 
     Repeated synthetic division by ``(τ − x)`` (Horner's shift). c: (..., n), x broadcastable
-    to ``c[..., 0]`` → (..., order + 1) (default order n − 1).
+    to ``c[..., 0]`` (default order n − 1).
     """
     n_out = c.shape[-1] if order is None else order + 1
     b = [c[..., m] for m in range(c.shape[-1])]
@@ -170,6 +172,12 @@ def poly_taylor(c, x, order: int | None = None):
             accs.append(accs[-1] * x + b[m])
         out.append(accs[-1])
         b = accs[-2::-1]
+    return out
+
+
+def poly_taylor(c, x, order: int | None = None):
+    """:func:`poly_taylor_terms` stacked along a new last axis → (..., order + 1)."""
+    out = poly_taylor_terms(c, x, order)
     return jnp.stack(jnp.broadcast_arrays(*out), axis=-1)
 
 

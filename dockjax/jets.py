@@ -1,7 +1,10 @@
 """Truncated Taylor series ("jets") for the right arm's nonlinear joints (SPEC §5).
 
-A jet is an array whose last axis holds normalised Taylor coefficients
-``a[..., k] = a^(k)(t) / k!``. The right arm's axial, lift and lateral joints go through
+A jet is a sequence of arrays, its normalised Taylor coefficients ``a[k] = a^(k)(t) / k!``
+(:func:`terms` splits a stacked jet along its last axis, :func:`stack` joins one). Kept as
+separate arrays, every operation is elementwise: XLA fuses the forward pass and, above
+all, the reverse pass (a jet stacked along an axis makes every coefficient access a slice,
+whose transpose is a pad: hundreds of small unfused ops in a gradient). The right arm's axial, lift and lateral joints go through
 ``sin``/``cos`` of the pitch and yaw (SPEC §4), so their derivatives up to the jerk (and
 one order more for root polishing) follow from Taylor-mode arithmetic: the Cauchy product
 and the classic sine/cosine recurrences (Griewank & Walther, *Evaluating Derivatives*,
@@ -14,7 +17,7 @@ import math
 
 import jax.numpy as jnp
 
-__all__ = ["mul", "sin_cos", "sin_cos_near", "derivatives"]
+__all__ = ["terms", "stack", "mul", "sin_cos", "sin_cos_near", "derivatives"]
 
 # Taylor coefficients of sin and cos in powers of x² (|x| <= 1.5 after the argument is
 # quartered: truncation error below 1e-16).
@@ -43,29 +46,35 @@ def sin_cos_near(x, ref_sin, ref_cos):
     return ref_sin * c + ref_cos * s, ref_cos * c - ref_sin * s
 
 
-def mul(a, b):
+def terms(a) -> list:
+    """The coefficients of a jet stacked along the last axis, as a list."""
+    return [a[..., k] for k in range(a.shape[-1])]
+
+
+def stack(jet):
+    """A jet (sequence of coefficient arrays) stacked along a new last axis."""
+    return jnp.stack(jnp.broadcast_arrays(*jet), axis=-1)
+
+
+def mul(a, b) -> list:
     """Cauchy product of two jets of equal order: ``(ab)_k = Σ_j a_j b_{k−j}``."""
-    n = a.shape[-1]
-    return jnp.stack(
-        [sum(a[..., j] * b[..., k - j] for j in range(k + 1)) for k in range(n)], axis=-1
-    )
+    return [sum(a[j] * b[k - j] for j in range(k + 1)) for k in range(len(a))]
 
 
-def sin_cos(a, s0=None, c0=None):
+def sin_cos(a, s0=None, c0=None) -> tuple[list, list]:
     """Jets of ``sin a`` and ``cos a``: ``s_k = (1/k) Σ_j j a_j c_{k−j}``, ``c_k = −(1/k) Σ_j j a_j s_{k−j}``.
 
     ``s0``, ``c0``: the values ``sin a_0``, ``cos a_0`` if already known.
     """
-    n = a.shape[-1]
-    s = [jnp.sin(a[..., 0]) if s0 is None else s0]
-    c = [jnp.cos(a[..., 0]) if c0 is None else c0]
-    for k in range(1, n):
-        s.append(sum(j * a[..., j] * c[k - j] for j in range(1, k + 1)) / k)
-        c.append(-sum(j * a[..., j] * s[k - j] for j in range(1, k + 1)) / k)
-    return jnp.stack(s, axis=-1), jnp.stack(c, axis=-1)
+    s = [jnp.sin(a[0]) if s0 is None else s0]
+    c = [jnp.cos(a[0]) if c0 is None else c0]
+    for k in range(1, len(a)):
+        s.append(sum(j * a[j] * c[k - j] for j in range(1, k + 1)) / k)
+        c.append(-sum(j * a[j] * s[k - j] for j in range(1, k + 1)) / k)
+    return s, c
 
 
 def derivatives(jet):
-    """Derivatives ``f^(k) = k! · a_k`` from a jet (last axis)."""
+    """Derivatives ``f^(k) = k! · a_k`` from a jet stacked along the last axis."""
     n = jet.shape[-1]
     return jet * jnp.asarray([math.factorial(k) for k in range(n)], jet.dtype)

@@ -341,31 +341,36 @@ def span_angles(c, h):
     return mid, jnp.sin(_DEG * mid), jnp.cos(_DEG * mid)
 
 
-def right_jets(problem: DockingProblem, c, tau, order: int, joints, ref):
-    """Jets of the right arm's axial, lift and lateral joints (SPEC §4).
+def right_terms(problem: DockingProblem, c, tau, order: int, joints, ref) -> list:
+    """Jets of the right arm's axial, lift and lateral joints (SPEC §4), as coefficient lists.
 
     c: (6, 6 powers, 6 coords) span coefficients; tau: (6, m) local times per span; ref:
-    :func:`span_angles`. Returns (6, m, len(joints), order + 1): normalised Taylor
-    coefficients of (0) ``d_R1 = z + D_2 cos α cos β``, (1) ``d_R2 = y + D_2 sin α`` and (2)
-    ``d_R3 = −(x + D_2 cos α sin β)``, for the requested (static) joints.
+    :func:`span_angles`. Returns, for each requested (static) joint, the list of its
+    normalised Taylor coefficients 0..order, each (6, m): (0) ``d_R1 = z + D_2 cos α cos β``,
+    (1) ``d_R2 = y + D_2 sin α``, (2) ``d_R3 = −(x + D_2 cos α sin β)``.
     """
     coords = sorted(set().union(*(_RIGHT_COORDS[j] for j in joints)))
-    pose = {i: bspline.poly_taylor(c[:, None, :, i], tau, order) for i in coords}
+    pose = {i: bspline.poly_taylor_terms(c[:, None, :, i], tau, order) for i in coords}
     mid, sin_m, cos_m = ref
     trig = {}
     for i in (3, 4):
         if i in pose:
             s0, c0 = jets.sin_cos_near(
-                _DEG * (pose[i][..., 0] - mid[:, i - 3, None]), sin_m[:, i - 3, None], cos_m[:, i - 3, None]
+                _DEG * (pose[i][0] - mid[:, i - 3, None]), sin_m[:, i - 3, None], cos_m[:, i - 3, None]
             )
-            trig[i] = jets.sin_cos(_DEG * pose[i], s0, c0)
+            trig[i] = jets.sin_cos([_DEG * a for a in pose[i]], s0, c0)
     d2 = problem.arm_distance
     make = (
-        lambda: pose[2] + d2 * jets.mul(trig[3][1], trig[4][1]),
-        lambda: pose[1] + d2 * trig[3][0],
-        lambda: -(pose[0] + d2 * jets.mul(trig[3][1], trig[4][0])),
+        lambda: [p + d2 * q for p, q in zip(pose[2], jets.mul(trig[3][1], trig[4][1]))],
+        lambda: [p + d2 * q for p, q in zip(pose[1], trig[3][0])],
+        lambda: [-(p + d2 * q) for p, q in zip(pose[0], jets.mul(trig[3][1], trig[4][0]))],
     )
-    return jnp.stack([make[j]() for j in joints], axis=-2)
+    return [make[j]() for j in joints]
+
+
+def right_jets(problem: DockingProblem, c, tau, order: int, joints, ref):
+    """:func:`right_terms` stacked: (6, m, len(joints), order + 1)."""
+    return jnp.stack([jets.stack(j) for j in right_terms(problem, c, tau, order, joints, ref)], axis=-2)
 
 
 def _joint_polys(problem: DockingProblem, c, h, ref):
@@ -553,16 +558,21 @@ def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 4):
 
 def _jerk(problem: DockingProblem, c, h, ref):
     """Sum over the eight joints of the RMS jerk (Eq. 25) by Gauss–Legendre per span."""
+    return jnp.sum(jnp.sqrt(_mean_square_jerk(problem, c, h, ref)))
+
+
+def _mean_square_jerk(problem: DockingProblem, c, h, ref):
+    """``(1/T) ∫ (d³q_j/dt³)² dt`` of the eight joints (8,), Gauss–Legendre per span (Eq. 25)."""
     xi, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
     tau = 0.5 * h[:, None] * (1.0 + jnp.asarray(xi, c.dtype))  # (6, n)
     weights = 0.5 * h[:, None] * jnp.asarray(w, c.dtype)
     cj = bspline.poly_derivative(jnp.swapaxes(c, 1, 2), 3)  # (6, 6 coords, 3)
     pj = bspline.poly_eval(cj[:, None], tau[..., None])  # (6, n, 6)
-    rj = right_jets(problem, c, tau, 3, (0, 1, 2), ref)[..., 3] * 6.0  # (6, n, 3)
-    jerk = jnp.concatenate([-pj[..., 2:3], pj[..., 1:2], -pj[..., 0:1], pj[..., 5:6], rj, -pj[..., 5:6]], -1)
-    T = jnp.sum(h)
-    ms = jnp.einsum("kn,knj->j", weights, jerk * jerk) / T
-    return jnp.sum(jnp.sqrt(ms))
+    lin = jnp.einsum("kn,knj->j", weights, pj * pj)  # (6 coords,)
+    # the right arm's third Taylor coefficients as separate arrays (no stacking: the
+    # reverse pass, used by refinement, then fuses)
+    right = [jnp.sum(weights * (6.0 * j[3]) ** 2) for j in right_terms(problem, c, tau, 3, (0, 1, 2), ref)]
+    return jnp.stack([lin[2], lin[1], lin[0], lin[5], *right, lin[5]]) / jnp.sum(h)
 
 
 def _score(problem: DockingProblem, x, screen: bool = False):

@@ -52,10 +52,10 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from . import bspline, config
+from . import config
 from .metrics import nondominated_points
-from .problem import (GAUSS_NODES, DockingProblem, _columns, _maxima, _maxima_screened, bucket_rows, decode,
-                      right_jets, span_angles)
+from .problem import (DockingProblem, _columns, _maxima, _maxima_screened, _mean_square_jerk, bucket_rows,
+                      decode, span_angles)
 
 __all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
 
@@ -108,16 +108,7 @@ def _safe_sqrt(v):
 def _safe_jerk(problem, c, h, ref):
     """As ``problem._jerk`` (SPEC §5, Eq. 25) with a square root whose gradient is finite
     (0) where a joint's mean-square jerk is 0."""
-    xi, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
-    tau = 0.5 * h[:, None] * (1.0 + jnp.asarray(xi, c.dtype))
-    weights = 0.5 * h[:, None] * jnp.asarray(w, c.dtype)
-    cj = bspline.poly_derivative(jnp.swapaxes(c, 1, 2), 3)
-    pj = bspline.poly_eval(cj[:, None], tau[..., None])
-    rj = right_jets(problem, c, tau, 3, (0, 1, 2), ref)[..., 3] * 6.0
-    jerk = jnp.concatenate(
-        [-pj[..., 2:3], pj[..., 1:2], -pj[..., 0:1], pj[..., 5:6], rj, -pj[..., 5:6]], -1
-    )
-    ms = jnp.einsum("kn,knj->j", weights, jerk * jerk) / jnp.sum(h)
+    ms = _mean_square_jerk(problem, c, h, ref)
     return jnp.sum(_safe_sqrt(ms))
 
 

@@ -34,12 +34,12 @@ def _jets_at(problem: DockingProblem, x, t):
     tau = t - u[bspline.DEGREE + k]
     pose = bspline.poly_taylor(jnp.swapaxes(c[k], 1, 2), tau[:, None], 3)  # (m, 6, 4)
     px, py, pz, pa, pb, pg = (pose[:, i] for i in range(6))
-    sa, ca = jets.sin_cos(_DEG * pa)
-    sb, cb = jets.sin_cos(_DEG * pb)
+    sa, ca = (jets.stack(j) for j in jets.sin_cos(jets.terms(_DEG * pa)))
+    sb, cb = (jets.stack(j) for j in jets.sin_cos(jets.terms(_DEG * pb)))
     d2 = problem.arm_distance
+    mul = lambda a, b: jets.stack(jets.mul(jets.terms(a), jets.terms(b)))  # noqa: E731
     joints = jnp.stack(
-        [-pz, py, -px, pg, pz + d2 * jets.mul(ca, cb), py + d2 * sa,
-         -(px + d2 * jets.mul(ca, sb)), -pg],
+        [-pz, py, -px, pg, pz + d2 * mul(ca, cb), py + d2 * sa, -(px + d2 * mul(ca, sb)), -pg],
         axis=1,
     )
     return jets.derivatives(pose), jets.derivatives(joints)
