@@ -494,12 +494,13 @@ def _right_remainder_bounds(problem: DockingProblem, c, h, ref):
     """
     mid, sin_m, _ = ref
     half = 0.5 * h[:, None]
-    ang = _DEG * bspline.poly_taylor(jnp.swapaxes(c[:, :, 3:5], 1, 2), half)  # (6, 2, 6)
-    m = np.arange(6)
-    powers = half[..., None] ** np.maximum(m - 1, 0)  # (6, 1, 6)
-    dev = jnp.sum(jnp.abs(ang[..., 1:]) * half[..., None] ** m[1:], -1)  # (6, 2)
-    vel = jnp.sum(jnp.abs(ang[..., 1:]) * m[1:] * powers[..., 1:], -1)
-    acc = jnp.sum(jnp.abs(ang[..., 2:]) * (m[2:] * (m[2:] - 1)) * half[..., None] ** (m[2:] - 2), -1)
+    ang = [_DEG * jnp.abs(a) for a in bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, 3:5], 1, 2), half)]
+    hp = [jnp.ones_like(half)]  # powers of h/2 by products (no pow): (6, 1) each
+    for _ in range(5):
+        hp.append(hp[-1] * half)
+    dev = sum(ang[m] * hp[m] for m in range(1, 6))  # (6, 2)
+    vel = sum(m * ang[m] * hp[m - 1] for m in range(1, 6))
+    acc = sum(m * (m - 1) * ang[m] * hp[m - 2] for m in range(2, 6))
     def norm(v):  # Euclidean norm with a finite gradient (0) at 0
         s = jnp.sum(v * v, -1)
         return jnp.where(s > 0, jnp.sqrt(jnp.where(s > 0, s, 1.0)), 0.0)
