@@ -455,11 +455,17 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     items = jnp.arange(n_items)
     slots = [flags & (rank == r) for r in range(SCREEN_SLOTS)]
     idx = jnp.stack([jnp.sum(jnp.where(s, items, 0)) for s in slots])  # (R,)
-    exact = extrema.rate_maxima(polys.reshape(n_items, -1)[idx], hh.reshape(-1)[idx])
-    vals = up.reshape(n_items, 3)
-    for r, s in enumerate(slots):
-        vals = vals.at[:, 1:].set(jnp.where(s[:, None], jnp.minimum(vals[:, 1:], exact[r]), vals[:, 1:]))
-    M = vals.reshape(up.shape).max(axis=0) + extra
+    exact = extrema.rate_maxima(polys.reshape(n_items, -1)[idx], hh.reshape(-1)[idx])  # (R, 2)
+    up_items = up.reshape(n_items, 3)
+    # rates: the largest U of the spans not sent to the chain, then each chain result
+    # (never above its span's U) at its joint; all values are >= 0
+    slotted = flags & (rank < SCREEN_SLOTS)
+    rate = jnp.where(slotted[:, None], 0.0, up_items[:, 1:]).reshape(up.shape[:2] + (2,)).max(axis=0)
+    joint = jnp.arange(up.shape[1])
+    for r in range(SCREEN_SLOTS):
+        hit = (joint == idx[r] % up.shape[1]) & jnp.any(slots[r])  # (8,)
+        rate = jnp.maximum(rate, jnp.where(hit[:, None], jnp.minimum(up_items[idx[r], 1:], exact[r]), 0.0))
+    M = jnp.concatenate([up[..., :1].max(axis=0), rate], axis=1) + extra
     need = jnp.any(2.0 * rem > BOUND_TOLERANCE * lim[4:7])
     over = (jnp.sum(flags) > SCREEN_SLOTS) | jnp.any(fail[:, 0])
     return M, need, over, (polys.reshape(n_items, -1), hh.reshape(-1), extra)
