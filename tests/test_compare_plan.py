@@ -39,8 +39,7 @@ def compare_out(tmp_path_factory):
     return out / "paper", r.stdout
 
 
-def test_compare_writes_every_promised_file(compare_out):
-    folder, stdout = compare_out
+def _check_every_promised_file(folder, stdout):
     for name in ("indicators.csv", "indicators.md", "runs.csv", "table3.csv", "table3.md", "table4.csv",
                  "table4.md", "chosen.json", "raw.npz"):
         assert (folder / name).stat().st_size > 0, name
@@ -70,8 +69,7 @@ def _hv(F, ref):
     return hv
 
 
-def test_best_known_front_beats_every_run_of_the_four_algorithms_and_is_dense_feasible(compare_out):
-    folder, _ = compare_out
+def _check_best_known_front_beats_every_run_and_is_dense_feasible(folder):
     raw = np.load(folder / "raw.npz")
     assert str(raw["reference_kind"]) == "best-known"
     best = raw["best_known_F"]
@@ -100,8 +98,7 @@ def test_best_known_front_beats_every_run_of_the_four_algorithms_and_is_dense_fe
             _hv(raw["imocs_F"][i][raw["imocs_front"][i]], ref)
 
 
-def test_compare_chosen_trajectories_are_feasible_on_the_dense_check(compare_out):
-    folder, _ = compare_out
+def _check_chosen_trajectories_are_feasible_on_the_dense_check(folder):
     chosen = json.loads((folder / "chosen.json").read_text())
     p = DockingProblem()
     assert set(chosen) == {"compromise", "time", "smooth"}
@@ -110,6 +107,15 @@ def test_compare_chosen_trajectories_are_feasible_on_the_dense_check(compare_out
                                 p.limits[:4, 1], p.limits[:4, 2])
         assert np.all(g <= 0)
     assert chosen["time"]["T"] <= chosen["compromise"]["T"] <= chosen["smooth"]["T"]
+
+
+def test_compare_end_to_end(compare_out):
+    """One test over the one compare.py run (its three checks above), so that under ``-n 2``
+    the run happens once: a module fixture used by tests on both xdist workers runs on each."""
+    folder, stdout = compare_out
+    _check_every_promised_file(folder, stdout)
+    _check_best_known_front_beats_every_run_and_is_dense_feasible(folder)
+    _check_chosen_trajectories_are_feasible_on_the_dense_check(folder)
 
 
 def test_compare_rejects_bad_input_with_exit_2(tmp_path):
