@@ -83,6 +83,26 @@ def evaluate_unit(problem, U) -> Population:
     return Population(U=U, F=F, G=G, cv=cv)
 
 
+def uniform_init_ask(key, problem, params):
+    """``init_ask`` of the algorithms that start uniformly in the unit box (SPEC §7):
+    ``pop_size`` uniform candidates. → ``(U, key)``."""
+    k_init, key = jax.random.split(key)
+    dtype = jnp.zeros(()).dtype
+    return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
+
+
+def evaluated_init(init_ask, init_tell, key, problem, params):
+    """``init`` from an ``init_ask``/``init_tell`` pair: ask, score, tell."""
+    U, key = init_ask(key, problem, params)
+    return init_tell(key, evaluate_unit(problem, U), params)
+
+
+def evaluated_step(ask, tell, state, problem, params):
+    """``step`` from an ``ask``/``tell`` pair: ask, score ``pop_size`` candidates, tell."""
+    U, state = ask(state, problem, params)
+    return tell(state, evaluate_unit(problem, U), params)
+
+
 def validate_common(pop_size: int, n_iter: int | None = None) -> None:
     """Checks shared by every algorithm, raised before any compilation."""
     if not isinstance(pop_size, (int, np.integer)) or isinstance(pop_size, bool) or pop_size < 4:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .base import check_range, evaluate_unit, pytree_dataclass, static, validate_common
+from .base import check_range, evaluated_init, evaluated_step, pytree_dataclass, static, validate_common
 from .mocs import State, cuckoo_ask, init_tell, tell
 from .mocs import final_population as final_population
 from .operators import bernoulli_population
@@ -70,11 +70,9 @@ def ask(state: State, problem, params: Params):
 
 def init(key, problem, params: Params) -> State:
     """Chaotic nests (Eqs. 31–32), evaluated."""
-    U, key = init_ask(key, problem, params)
-    return init_tell(key, evaluate_unit(problem, U), params)
+    return evaluated_init(init_ask, init_tell, key, problem, params)
 
 
 def step(state: State, problem, params: Params) -> State:
     """One IMOCS iteration: :func:`ask`, evaluate the n children, :func:`tell`."""
-    U, state = ask(state, problem, params)
-    return tell(state, evaluate_unit(problem, U), params)
+    return evaluated_step(ask, tell, state, problem, params)

@@ -24,7 +24,8 @@ import jax.numpy as jnp
 
 from .. import pareto
 from .base import (
-    Population, check_range, evaluate_unit, pytree_dataclass, replace, static, validate_common,
+    Population, check_range, evaluated_init, evaluated_step, pytree_dataclass, replace, static,
+    uniform_init_ask, validate_common,
 )
 from .operators import discovery, levy_step, merge_and_survive, random_rank1_partner
 
@@ -63,9 +64,7 @@ def validate(problem, params: Params) -> None:
 
 def init_ask(key, problem, params: Params):
     """Uniform random nests in the unit box (SPEC §7). → ``(U, key)``."""
-    k_init, key = jax.random.split(key)
-    dtype = jnp.zeros(()).dtype
-    return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
+    return uniform_init_ask(key, problem, params)
 
 
 def init_tell(key, pop: Population, params: Params) -> State:
@@ -99,14 +98,12 @@ def tell(state: State, children: Population, params: Params) -> State:
 
 def init(key, problem, params: Params) -> State:
     """Uniform random nests in the unit box (SPEC §7), evaluated."""
-    U, key = init_ask(key, problem, params)
-    return init_tell(key, evaluate_unit(problem, U), params)
+    return evaluated_init(init_ask, init_tell, key, problem, params)
 
 
 def step(state: State, problem, params: Params) -> State:
     """One MOCS iteration: :func:`ask`, evaluate the n children, :func:`tell`."""
-    U, state = ask(state, problem, params)
-    return tell(state, evaluate_unit(problem, U), params)
+    return evaluated_step(ask, tell, state, problem, params)
 
 
 def final_population(state: State) -> Population:

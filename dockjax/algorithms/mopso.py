@@ -51,7 +51,8 @@ import numpy as np
 
 from .. import pareto
 from .base import (
-    Population, check_range, evaluate_unit, pytree_dataclass, replace, static, validate_common,
+    Population, check_range, evaluated_init, evaluated_step, pytree_dataclass, replace, static,
+    uniform_init_ask, validate_common,
 )
 
 __all__ = [
@@ -234,9 +235,7 @@ def _pbest_update(key, pbest: Population, new: Population) -> Population:
 
 def init_ask(key, problem, params: Params):
     """Uniform random particles in the unit box. → ``(U, key)``."""
-    k_init, key = jax.random.split(key)
-    dtype = jnp.zeros(()).dtype
-    return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
+    return uniform_init_ask(key, problem, params)
 
 
 def init_tell(key, pop: Population, params: Params) -> State:
@@ -290,14 +289,12 @@ def tell(state: State, pop: Population, params: Params) -> State:
 def init(key, problem, params: Params) -> State:
     """Uniform random particles in the unit box, at rest, evaluated (``pop_size``
     evaluations)."""
-    U, key = init_ask(key, problem, params)
-    return init_tell(key, evaluate_unit(problem, U), params)
+    return evaluated_init(init_ask, init_tell, key, problem, params)
 
 
 def step(state: State, problem, params: Params) -> State:
     """One MOPSO iteration: :func:`ask`, evaluation, :func:`tell`."""
-    U, state = ask(state, problem, params)
-    return tell(state, evaluate_unit(problem, U), params)
+    return evaluated_step(ask, tell, state, problem, params)
 
 
 def final_population(state: State) -> Population:

@@ -34,7 +34,8 @@ import numpy as np
 
 from .. import pareto
 from .base import (
-    Population, check_range, evaluate_unit, pytree_dataclass, replace, static, validate_common,
+    Population, check_range, evaluated_init, evaluated_step, pytree_dataclass, replace, static,
+    uniform_init_ask, validate_common,
 )
 from .variation import binary_tournament, polynomial_mutation, sbx
 
@@ -91,9 +92,7 @@ def _with_ranks(key, pop: Population) -> State:
 
 def init_ask(key, problem, params: Params):
     """Uniform random population in the unit box. → ``(U, key)``."""
-    k_init, key = jax.random.split(key)
-    dtype = jnp.zeros(()).dtype
-    return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
+    return uniform_init_ask(key, problem, params)
 
 
 def init_tell(key, pop: Population, params: Params) -> State:
@@ -130,15 +129,13 @@ def tell(state: State, offspring: Population, params: Params) -> State:
 
 def init(key, problem, params: Params) -> State:
     """Uniform random population in the unit box, evaluated (``pop_size`` evaluations)."""
-    U, key = init_ask(key, problem, params)
-    return init_tell(key, evaluate_unit(problem, U), params)
+    return evaluated_init(init_ask, init_tell, key, problem, params)
 
 
 def step(state: State, problem, params: Params) -> State:
     """One generation: :func:`ask` (tournament, SBX, mutation), evaluation of the n
     children, :func:`tell` (survival)."""
-    U, state = ask(state, problem, params)
-    return tell(state, evaluate_unit(problem, U), params)
+    return evaluated_step(ask, tell, state, problem, params)
 
 
 def final_population(state: State) -> Population:
