@@ -235,11 +235,29 @@ def _bucket(n: int) -> int:
     return min(_CHUNK, bucket_rows(n))
 
 
-def _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input):
+def _check_rows(rows):
+    if rows is not None and (isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1):
+        raise ValueError(f"rows must be a positive integer or None, got {rows!r}")
+
+
+def _evaluate(problem, X, rows=None):
+    """``problem.evaluate(X)``; with ``rows``, in calls of exactly ``rows`` rows (the last one
+    padded with copies of its first row), so that every call shares one compiled shape."""
+    if rows is None or len(X) == 0:
+        return problem.evaluate(X)
+    parts = []
+    for i in range(0, len(X), rows):
+        part = X[i:i + rows]
+        F, G = problem.evaluate(np.concatenate([part, np.repeat(part[:1], rows - len(part), 0)]))
+        parts.append((F[:len(part)], G[:len(part)]))
+    return tuple(np.concatenate(a) for a in zip(*parts))
+
+
+def _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input, rows=None):
     """Shared driver: polish X (n, d) under ``T ≤ cap`` (n,), in chunks of one compiled
-    shape (:func:`_bucket`); see :func:`_run_chunk`."""
+    shape (``rows``, default :func:`_bucket`); see :func:`_run_chunk`."""
     n = X.shape[0]
-    size = _bucket(n)
+    size = _bucket(n) if rows is None else int(rows)
     parts = [_run_chunk(problem, X[i:i + size], cap[i:i + size], size, steps, learning_rate, penalty,
                         margin, keep_input) for i in range(0, n, size)]
     return tuple(np.concatenate(a) for a in zip(*parts))
@@ -279,6 +297,7 @@ def refine(
     learning_rate: float = 0.05,
     penalty: float = 10.0,
     margin: float = 1e-4,
+    rows: int | None = None,
 ) -> RefineResult:
     """Polish every row of X (n, n_var) (natural units) by projected Adam in the unit box:
     minimise jerk with ``T ≤ T_i`` and all 24 limits, see the module docstring.
@@ -287,23 +306,26 @@ def refine(
     itself over ``steps``; ``penalty`` the weight μ of the linear penalty ``μ Σ max(G +
     margin, 0)`` (10 μ for its quadratic part) against the jerk normalised by the input's.
     Rows outside the box are clipped into it as the starting point (the input row is still
-    returned when nothing better is found). Raises ValueError on bad input.
+    returned when nothing better is found). ``rows``: rows per compiled call (default the
+    kernel's bucket of n, at most 256; calls of one ``rows`` share a compiled program).
+    Raises ValueError on bad input.
     """
     _check_common(problem, steps, learning_rate, penalty, margin)
+    _check_rows(rows)
     X = problem.check_population(X)
     if X.shape[0] == 0:
         raise ValueError("X must have at least one row")
     t0 = time.perf_counter()
     _, _, jb, xb, fb, gb, nbad = _run(problem, X, X[:, : config.N_INTERVALS].sum(1), steps,
-                                  learning_rate, penalty, margin, keep_input=True)
+                                      learning_rate, penalty, margin, keep_input=True, rows=rows)
     found = np.isfinite(jb) & ~np.all(xb == X, 1)
     # the kernel has the last word (in the "adaptive" right-arm mode the loop used the
     # bound path, which never understates but may overstate more): a refined row is kept
     # only if the kernel finds it feasible, no longer, and — for a feasible input — of
     # strictly lower jerk
-    F0, G0 = problem.evaluate(X)
+    F0, G0 = _evaluate(problem, X, rows)
     if found.any():
-        Fk, Gk = problem.evaluate(xb[found])
+        Fk, Gk = _evaluate(problem, xb[found], rows)
         feas_in = np.all(G0[found] <= 0, 1)
         ok = (np.all(Gk <= 0, 1) & (Fk[:, 0] <= X[found, : config.N_INTERVALS].sum(1) * (1 + 1e-12))
               & (~feas_in | (Fk[:, 1] < F0[found, 1])))
@@ -342,6 +364,7 @@ def best_known_front(
     penalty: float = 10.0,
     margin: float = 1e-4,
     seed: int = 0,
+    rows: int | None = None,
 ) -> FrontResult:
     """ε-constraint sweep: for ``n_points`` time caps evenly spaced in ``[6 h_lo, 6 h_hi]``
     minimise jerk subject to ``T ≤ cap`` and the limits, from the straight line with equal
@@ -350,9 +373,11 @@ def best_known_front(
     jittered at fixed sum). All starts are polished in one batch by the machinery of
     :func:`refine`. Returns the feasible non-dominated points found.
 
-    Computed from the problem alone, without seeing any optimiser's front.
+    Computed from the problem alone, without seeing any optimiser's front. ``rows`` as in
+    :func:`refine`.
     """
     _check_common(problem, steps, learning_rate, penalty, margin)
+    _check_rows(rows)
     if isinstance(n_points, bool) or not isinstance(n_points, (int, np.integer)) or n_points < 2:
         raise ValueError(f"n_points must be an integer >= 2, got {n_points!r}")
     if isinstance(n_perturbed, bool) or not isinstance(n_perturbed, (int, np.integer)) or n_perturbed < 0:
@@ -377,10 +402,11 @@ def best_known_front(
         caps.append(targets)
     X = np.concatenate(starts)
     cap = np.concatenate(caps)
-    _, _, jb, xb, fb, gb, _ = _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input=True)
+    _, _, jb, xb, fb, gb, _ = _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input=True,
+                                   rows=rows)
     ok = np.isfinite(jb) & np.all(gb <= 0, 1)
     Xf = xb[ok]
-    Ff, Gf = problem.evaluate(Xf) if len(Xf) else (fb[ok], gb[ok])  # the kernel's word
+    Ff, Gf = _evaluate(problem, Xf, rows) if len(Xf) else (fb[ok], gb[ok])  # the kernel's word
     feas = np.all(Gf <= 0, 1)
     Xf, Ff, Gf = Xf[feas], Ff[feas], Gf[feas]
     _, order = nondominated_points(Ff, return_index=True)  # distinct, sorted by T

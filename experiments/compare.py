@@ -85,7 +85,8 @@ def main(args: Args) -> int:
         print("error: " + "; ".join(errors), file=sys.stderr)
         return 2
     from dockjax.cli import enable_compilation_cache
-    from dockjax.study import best_known_cached, make_problem, run_study, summary_table, write_study
+    from dockjax.study import (REFINE_ROWS, STUDY_RIGHT_ARM, best_known_cached, make_problem, run_study,
+                               summary_table, write_study)
 
     enable_compilation_cache()
     t0 = time.perf_counter()
@@ -93,12 +94,14 @@ def main(args: Args) -> int:
         best = None
         if args.best_known:
             (args.out / preset).mkdir(parents=True, exist_ok=True)
-            best = best_known_cached(make_problem(preset), args.out / preset / "best_known.npz",
+            best = best_known_cached(make_problem(preset, STUDY_RIGHT_ARM), args.out / preset / "best_known.npz",
                                      log=lambda m, p=preset: print(f"[{p}] {m}"),
-                                     n_points=args.best_known_points, steps=args.best_known_steps)
+                                     n_points=args.best_known_points, steps=args.best_known_steps,
+                                     rows=REFINE_ROWS)
         study = run_study(preset, algorithms=args.algorithms, seeds=range(args.seeds),
                           pop_size=args.pop, n_iter=args.iters, refine_steps=args.refine_steps,
                           best_known=best)
+        t1 = time.perf_counter()
         files = write_study(study, args.out)
         print(f"[{preset}] reference front: {study.reference_description}")
         for row in summary_table(study):
@@ -106,7 +109,7 @@ def main(args: Args) -> int:
                   f"{100 * row['HV_fraction_median']:.2f} % of the reference's), "
                   f"IGD {row['IGD_median']:.4f}, GD {row['GD_median']:.5f}, SP {row['SP_median']:.5f}, "
                   f"ONVG {row['ONVG_median']:.0f}")
-        print(f"[{preset}] wrote {len(files)} files to {args.out / preset}")
+        print(f"[{preset}] wrote {len(files)} files to {args.out / preset} in {time.perf_counter() - t1:.1f} s")
     print(f"wall time: {time.perf_counter() - t0:.1f} s")
     return 0
 
