@@ -93,6 +93,8 @@ def test_bad_hyper_parameters_raise_before_compiling():
         optimize("cuckoo", z)
     with pytest.raises(ValueError, match="unknown hyper-parameter"):
         optimize("mocs", z, rho=0.4, pop_size=10, n_iter=2)
+    with pytest.raises(ValueError, match="driver"):
+        optimize("mocs", z, pop_size=10, n_iter=2, driver="loop")
 
 
 @pytest.fixture(scope="module")

@@ -291,17 +291,19 @@ def test_run_loop_is_init_then_steps(name):
     np.testing.assert_allclose(np.asarray(trace), steps, rtol=1e-13)
 
 
+@pytest.mark.parametrize("driver", ["scan", "host"])
 @pytest.mark.parametrize("name", ["imocs", "mocs", "nsga2", "mopso"])
-def test_optimize_equals_vmapped_run(name):
-    """``optimize`` drives the batch from Python (ask, one kernel call for every run, tell);
-    it must give what ``jax.vmap`` of the single compiled ``run`` gives: the same final
-    populations and histories, up to rounding (the two programs fuse differently)."""
+def test_optimize_equals_vmapped_run(name, driver):
+    """``optimize``'s drivers — one compiled vmapped scan, or a Python loop of ask, one
+    kernel call for every run, tell — must give what ``jax.vmap`` of ``run`` gives: the
+    same final populations and histories, up to rounding (the programs fuse differently)."""
     from dockjax.algorithms import get, make_params, optimize
 
     algo, problem, n_iter, seeds = get(name), ZDT1(n_var=5), 5, [3, 4, 5]
     batch = {"rho": [0.3, 0.4, 0.6]} if name == "imocs" else {}
     ref = np.array([1.2, 6.0])
-    res = optimize(name, problem, seeds=seeds, pop_size=10, n_iter=n_iter, hv_ref=ref, batch_params=batch)
+    res = optimize(name, problem, seeds=seeds, pop_size=10, n_iter=n_iter, hv_ref=ref, batch_params=batch,
+                   driver=driver)
     params = make_params(algo, 10, n_iter)
 
     def one(key, ov):
