@@ -55,10 +55,24 @@ def random_rank1_partner(key, rank):
     return jnp.searchsorted(count, j, side="right").astype(jnp.int32)  # its index
 
 
+def materialize(x):
+    """x, computed into a buffer of its own before any consumer reads it.
+
+    XLA:CPU fuses an array's computation into every gather that reads it, recomputing it
+    per gathered element: discovery's two row gathers of the Lévy-moved nests recomputed
+    the whole Lévy step (normals by ``erf_inv``, a ``pow``) twice more, 13 of the 14 ms of
+    a vmapped cuckoo ``ask`` of 16 × 150 nests. A two-trip loop around an optimisation
+    barrier is a boundary XLA neither fuses across nor simplifies away (a one-trip loop
+    is inlined and a bare barrier does not stop the fusion); the value is unchanged.
+    """
+    return jax.lax.fori_loop(0, 2, lambda _, y: jax.lax.optimization_barrier(y), x)
+
+
 def discovery(key, U, p_a):
     """Alien-egg discovery (Yang & Deb 2013; SPEC §7): each component changes with
     probability ``p_a`` by ``r (x_a − x_b)``, a, b random permutations, ``r ~ U(0, 1)`` per
     component (the ``⊙`` of ALGORITHMS.md). U: (n, d) → (n, d)."""
+    U = materialize(U)  # read at permuted rows below
     n, d = U.shape
     k1, k2, k3, k4 = jax.random.split(key, 4)
     mask = jax.random.uniform(k1, (n, d), U.dtype) < p_a
