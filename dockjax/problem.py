@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import bspline, config, extrema, jets
+from .fusion import materialize
 from .kinematics import inverse_kinematics
 
 __all__ = ["DockingProblem", "score", "score_batch"]
@@ -324,7 +325,7 @@ def decode(problem: DockingProblem, x):
     ctrl = bspline.control_points(problem.start, problem.goal, interior)
     # Materialise: stops XLA from re-fusing (and so recomputing) the conversion into
     # every broadcasting consumer downstream.
-    return jax.lax.optimization_barrier((h, u, bspline.span_coefficients(ctrl, u)))
+    return materialize((h, u, bspline.span_coefficients(ctrl, u)))
 
 
 _RIGHT_COORDS = ((2, 3, 4), (1, 3), (0, 3, 4))
@@ -397,7 +398,7 @@ def _maxima(problem: DockingProblem, c, h, ref, *, with_need: bool = False):
 
     With ``with_need``, also whether this candidate's bound treatment of the right arm may
     overstate by more than :data:`BOUND_TOLERANCE` (always False on the exact path)."""
-    polys = jax.lax.optimization_barrier(_joint_polys(problem, c, h, ref))
+    polys = materialize(_joint_polys(problem, c, h, ref))
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     spans, times = extrema.span_maxima(polys, hh)
     lin = jnp.max(spans, axis=0)  # (8, 3)
@@ -438,7 +439,7 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     its columns are then valid upper bounds, not necessarily within the tolerance, and it
     is re-scored by the full chain on all its spans, as :func:`score_batch` does (from the
     returned ``(span series (48, 6), span lengths (48,), right-arm remainders (8, 3))``)."""
-    polys = jax.lax.optimization_barrier(_joint_polys(problem, c, h, ref))  # (6, 8, 6)
+    polys = materialize(_joint_polys(problem, c, h, ref))  # (6, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     low, up = extrema.span_bounds(polys, hh)  # (6, 8, 3)
     rem = _right_remainder_bounds(problem, c, h, ref).max(axis=0)  # (3 joints, 3)
@@ -587,7 +588,7 @@ def _score(problem: DockingProblem, x, screen: bool = False):
     one candidate (``screen``: :func:`_maxima_screened` instead of :func:`_maxima`)."""
     h, u, c = decode(problem, x)
     T = jnp.sum(h)
-    ref = jax.lax.optimization_barrier(span_angles(c, h))
+    ref = materialize(span_angles(c, h))
     F = jnp.stack([T, _jerk(problem, c, h, ref)])
     if screen and problem.right_arm != "exact":
         M, need, over, spans = _maxima_screened(problem, c, h, ref)
@@ -605,7 +606,7 @@ def _columns(problem: DockingProblem, M):
 def _limits_full(problem: DockingProblem, x):
     """G (24,) of one candidate by the full root chain (no objectives: less to compile)."""
     h, u, c = decode(problem, x)
-    ref = jax.lax.optimization_barrier(span_angles(c, h))
+    ref = materialize(span_angles(c, h))
     return _columns(problem, _maxima(problem, c, h, ref))
 
 

@@ -53,6 +53,7 @@ import numpy as np
 import optax
 
 from . import config
+from .fusion import materialize
 from .metrics import nondominated_points
 from .problem import (DockingProblem, _columns, _maxima, _maxima_screened, _mean_square_jerk, bucket_rows,
                       decode, span_angles)
@@ -126,7 +127,7 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
     150 points × 200 steps; the backward pass dominates) and lands a hair lower in HV, so
     refinement keeps the full chain."""
     h, _, c = decode(problem, x)
-    ref = jax.lax.optimization_barrier(span_angles(c, h))
+    ref = materialize(span_angles(c, h))
     F = jnp.stack([jnp.sum(h), _safe_jerk(problem, c, h, ref)])
     if screen and problem.right_arm != "exact":
         M = _maxima_screened(problem, c, h, ref)[0]

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 
 from .. import pareto
+from ..fusion import materialize
 
 __all__ = [
     "mantegna_sigma",
@@ -53,19 +54,6 @@ def random_rank1_partner(key, rank):
     count = jnp.cumsum(rank == 0)  # count[i]: rank-1 members among 0..i
     j = jax.random.randint(key, (n,), 0, jnp.maximum(count[-1], 1))  # which rank-1 member
     return jnp.searchsorted(count, j, side="right").astype(jnp.int32)  # its index
-
-
-def materialize(x):
-    """x, computed into a buffer of its own before any consumer reads it.
-
-    XLA:CPU fuses an array's computation into every gather that reads it, recomputing it
-    per gathered element: discovery's two row gathers of the Lévy-moved nests recomputed
-    the whole Lévy step (normals by ``erf_inv``, a ``pow``) twice more, 13 of the 14 ms of
-    a vmapped cuckoo ``ask`` of 16 × 150 nests. A two-trip loop around an optimisation
-    barrier is a boundary XLA neither fuses across nor simplifies away (a one-trip loop
-    is inlined and a bare barrier does not stop the fusion); the value is unchanged.
-    """
-    return jax.lax.fori_loop(0, 2, lambda _, y: jax.lax.optimization_barrier(y), x)
 
 
 def discovery(key, U, p_a):
