@@ -441,7 +441,7 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     returned ``(span series (48, 6), span lengths (48,), right-arm remainders (8, 3))``)."""
     polys = materialize(_joint_polys(problem, c, h, ref))  # (6, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
-    low, up = extrema.span_bounds(polys, hh)  # (6, 8, 3)
+    low, up = materialize(extrema.span_bounds(polys, hh))  # (6, 8, 3); read by several fusions
     rem = _right_remainder_bounds(problem, c, h, ref).max(axis=0)  # (3 joints, 3)
     extra = jnp.zeros((8, 3), c.dtype).at[4:7].set(rem)
     lim = problem.limits
