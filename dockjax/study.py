@@ -19,10 +19,10 @@ import numpy as np
 from . import config, metrics, plots, select
 from .algorithms import Result, optimize, refine_result
 from .io import atomic_savez, atomic_write_text
-from .problem import DockingProblem
+from .problem import DockingProblem, bucket_rows
 from .refine import FrontResult, best_known_front
 
-__all__ = ["PRESETS", "BEST_KNOWN", "make_problem", "hv_reference", "best_known_cached", "run_study", "Study", "write_study"]
+__all__ = ["PRESETS", "BEST_KNOWN", "make_problem", "study_right_arm", "refine_rows", "hv_reference", "best_known_cached", "run_study", "Study", "write_study"]
 
 PRESETS = {
     "paper": dict(interval_bounds=(3.5, 10.0)),
@@ -36,16 +36,28 @@ TYPES = ("compromise", "time", "smooth")
 
 
 STUDY_RIGHT_ARM = "adaptive"
-"""Right-arm treatment of the comparison's problems (see :class:`DockingProblem`), for every
-preset. ``"adaptive"`` scores exactly as ``"bound"`` wherever the bound is within SPEC §6's
-tolerance — every candidate of the ``paper`` preset, where ``"auto"`` picks ``"bound"`` —
-and as ``"exact"`` elsewhere; with one setting for both presets, the presets share every
-compiled program (same shapes, same static settings), which saves compare.py a whole set of
-compilations (~1 minute here)."""
+"""Right-arm treatment of the comparison's problems (see :class:`DockingProblem`) when it
+runs several presets. ``"adaptive"`` scores exactly as ``"bound"`` wherever the bound is
+within SPEC §6's tolerance — every candidate of the ``paper`` preset, where ``"auto"``
+picks ``"bound"`` — and as ``"exact"`` elsewhere; with one setting for every preset, the
+presets share every compiled program (same shapes, same static settings), which saves
+compare.py a whole set of compilations (~1 minute here). A single preset keeps its
+``"auto"`` choice (nothing to share; ``"bound"`` compiles faster)."""
 
 REFINE_ROWS = 256
-"""Rows per compiled call of every refinement in a study (the best-known front and the
-memetic rows): one compiled program for both."""
+"""Most rows per compiled call of the refinements of a study (see :func:`refine_rows`)."""
+
+
+def study_right_arm(presets) -> str:
+    """:data:`STUDY_RIGHT_ARM` for several presets, ``"auto"`` for one."""
+    return STUDY_RIGHT_ARM if len(set(presets)) > 1 else "auto"
+
+
+def refine_rows(*sizes: int) -> int:
+    """Rows per compiled call shared by every refinement of a study (the best-known front,
+    the memetic rows), given their row counts: the kernel's bucket of the largest, at most
+    :data:`REFINE_ROWS`; so one compiled program serves them all."""
+    return min(REFINE_ROWS, bucket_rows(max(sizes)))
 
 
 def make_problem(preset: str, right_arm: str = "auto") -> DockingProblem:
@@ -113,18 +125,21 @@ def best_known_cached(problem: DockingProblem, path: Path | None = None, log=pri
 
 def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), seeds=range(31),
               pop_size: int = 150, n_iter: int = 100, refine_steps: int = 0,
-              best_known: FrontResult | None = None, log=print) -> Study:
+              best_known: FrontResult | None = None, right_arm: str = "auto", refine_rows: int | None = None,
+              log=print) -> Study:
     """Run every algorithm for every seed and score them (SPEC §8).
 
     ``refine_steps > 0`` adds ``"imocs+refine"``: the IMOCS runs finished by gradient
     refinement (:func:`dockjax.algorithms.refine_result`). ``best_known`` (from
     :func:`best_known_cached`) becomes the reference front of the indicators; without it the
-    reference is the non-dominated union of every final feasible set.
+    reference is the non-dominated union of every final feasible set. ``right_arm``: the
+    problem's right-arm treatment (:func:`study_right_arm`); ``refine_rows``: rows per
+    compiled call of the refinement (:func:`refine_rows`; default its own bucket).
     """
     import time
 
     t0 = time.perf_counter()
-    problem = make_problem(preset, STUDY_RIGHT_ARM)
+    problem = make_problem(preset, right_arm)
     ref_point = hv_reference(problem)
     results = {}
     for name in algorithms:
@@ -135,7 +150,7 @@ def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), se
         log(f"[{preset}] {name}: {len(r)} runs in {r.seconds:.1f} s (compile included)")
         results[name] = r
     if refine_steps and "imocs" in results:
-        r = refine_result(problem, results["imocs"], steps=refine_steps, rows=REFINE_ROWS)
+        r = refine_result(problem, results["imocs"], steps=refine_steps, rows=refine_rows)
         log(f"[{preset}] imocs+refine: {r.extra['improved'].sum()} of {r.extra['improved'].size} members "
             f"improved in {r.extra['refine_seconds']:.1f} s ({refine_steps} steps, compile included)")
         results["imocs+refine"] = r

@@ -85,22 +85,25 @@ def main(args: Args) -> int:
         print("error: " + "; ".join(errors), file=sys.stderr)
         return 2
     from dockjax.cli import enable_compilation_cache
-    from dockjax.study import (REFINE_ROWS, STUDY_RIGHT_ARM, best_known_cached, make_problem, run_study,
+    from dockjax.study import (best_known_cached, make_problem, refine_rows, run_study, study_right_arm,
                                summary_table, write_study)
 
     enable_compilation_cache()
     t0 = time.perf_counter()
+    # one right-arm setting and one refinement shape for everything: shared compilations
+    right_arm = study_right_arm(args.presets)
+    rows = refine_rows(args.seeds * args.pop, args.best_known_points)
     for preset in args.presets:
         best = None
         if args.best_known:
             (args.out / preset).mkdir(parents=True, exist_ok=True)
-            best = best_known_cached(make_problem(preset, STUDY_RIGHT_ARM), args.out / preset / "best_known.npz",
+            best = best_known_cached(make_problem(preset, right_arm), args.out / preset / "best_known.npz",
                                      log=lambda m, p=preset: print(f"[{p}] {m}"),
                                      n_points=args.best_known_points, steps=args.best_known_steps,
-                                     rows=REFINE_ROWS)
+                                     rows=rows)
         study = run_study(preset, algorithms=args.algorithms, seeds=range(args.seeds),
                           pop_size=args.pop, n_iter=args.iters, refine_steps=args.refine_steps,
-                          best_known=best)
+                          best_known=best, right_arm=right_arm, refine_rows=rows)
         t1 = time.perf_counter()
         files = write_study(study, args.out)
         print(f"[{preset}] reference front: {study.reference_description}")
