@@ -224,7 +224,7 @@ _front_batch = jax.jit(jax.vmap(_front_mask))
 # program per (problem settings, rows) whatever the algorithm, so the four algorithms of a
 # comparison — and problems that differ only in their arrays (presets) — share its
 # compilation, the dear one; the per-algorithm programs are small. The result equals the
-# scan driver's up to rounding (a test checks it); per iteration it is ~20 % slower here
+# scan driver's up to rounding (a test compares them); per iteration it is ~20 % slower here
 # (measured in one process, 16 IMOCS runs of 150: 5.2 against 6.8 s).
 
 
