@@ -117,7 +117,8 @@ def test_infeasible_input_is_repaired_or_returned_unchanged(problem):
 @pytest.mark.parametrize(
     "kwargs, match",
     [({"steps": 0}, "steps"), ({"learning_rate": -1.0}, "learning_rate"),
-     ({"penalty": float("nan")}, "penalty"), ({"margin": 0.7}, "margin")],
+     ({"penalty": float("nan")}, "penalty"), ({"margin": 0.7}, "margin"), ({"rows": 0}, "rows"),
+     ({"rows": 2.5}, "rows")],
 )
 def test_refine_rejects_bad_arguments(problem, kwargs, match):
     with pytest.raises(ValueError, match=match):
