@@ -282,7 +282,7 @@ class DockingProblem:
         n = arr.shape[0]
         # pad to a bucket of rows (copies of row 0, dropped again): populations of nearby
         # sizes share one compiled shape
-        padded = np.concatenate([arr, np.repeat(arr[:1], bucket_rows(n) - n, 0)]) if n else arr
+        padded = pad_rows(arr, bucket_rows(n)) if n else arr
         if precision == "float64":
             with jax.enable_x64(True):
                 F, G = _evaluate_batch(self, jnp.asarray(padded), screen=bool(screen))
@@ -710,6 +710,12 @@ def score_batch(problem: DockingProblem, X, screen: bool = True):
 
 
 _evaluate_batch = jax.jit(score_batch, static_argnames="screen")
+
+
+def pad_rows(a: np.ndarray, size: int) -> np.ndarray:
+    """a (n, ...) with copies of its first row appended up to ``size`` rows (n >= 1): one
+    compiled shape for nearby batch sizes; the caller drops the extra rows again."""
+    return np.concatenate([a, np.repeat(a[:1], size - len(a), 0)])
 
 
 def bucket_rows(n: int) -> int:

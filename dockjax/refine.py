@@ -55,7 +55,7 @@ import optax
 from . import config
 from .fusion import materialize
 from .metrics import nondominated_points
-from .problem import (DockingProblem, _columns, _maxima, _maxima_screened, _mean_square_jerk, bucket_rows,
+from .problem import (DockingProblem, _columns, _maxima, _maxima_screened, _mean_square_jerk, bucket_rows, pad_rows,
                       decode, span_angles)
 
 __all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
@@ -249,7 +249,7 @@ def _evaluate(problem, X, rows=None):
     parts = []
     for i in range(0, len(X), rows):
         part = X[i:i + rows]
-        F, G = problem.evaluate(np.concatenate([part, np.repeat(part[:1], rows - len(part), 0)]))
+        F, G = problem.evaluate(pad_rows(part, rows))
         parts.append((F[:len(part)], G[:len(part)]))
     return tuple(np.concatenate(a) for a in zip(*parts))
 
@@ -268,9 +268,7 @@ def _run_chunk(problem, X, cap, size, steps, learning_rate, penalty, margin, kee
     """Polish X (n ≤ size, d) under ``T ≤ cap`` (n,); when keep_input, the input row is the
     incumbent if kernel-feasible (so only strict jerk improvements are taken)."""
     n = X.shape[0]
-    pad = size - n  # pad the batch with copies of row 0: one compiled shape per bucket
-    X = np.concatenate([X, np.repeat(X[:1], pad, 0)])
-    cap = np.concatenate([cap, np.repeat(cap[:1], pad)])
+    X, cap = pad_rows(X, size), pad_rows(cap, size)  # one compiled shape per bucket
     with jax.enable_x64(True):
         Xj = jnp.asarray(X)
         F0, G0 = _score_rows(problem, Xj)

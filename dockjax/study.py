@@ -2,7 +2,8 @@
 the choice of three trajectories, and the files of ``experiments/compare.py``.
 
 Data flow: :func:`run_study` runs every algorithm for every seed (all seeds of an
-algorithm batched; ``driver="host"``, so the algorithms share the kernel's compilation) → the reference front is the non-dominated union of every final feasible set
+algorithm batched; ``driver="host"``, so the algorithms share the kernel's compilation)
+→ the reference front is the non-dominated union of every final feasible set
 (SPEC §8) → indicators per run on objectives normalised by that front → per-algorithm
 medians, interquartile ranges, best runs and a rank-sum test against IMOCS → Table 3 and
 Table 4 analogues from the IMOCS run of median hypervolume.
