@@ -1,11 +1,15 @@
 """Throughput of a sweep chunk, the extrapolated wall time of a 1000-run sweep, and pymoo.
 
-    python benchmarks/bench_sweep.py [--pop 150] [--iters 100] [--chunk 16] [--runs 1000] [--pymoo-runs 2]
-    python benchmarks/bench_sweep.py --pop 8 --iters 3 --chunk 2 --pymoo-runs 1   # a quick check
+    python benchmarks/bench_sweep.py [--pop 150] [--iters 100] [--chunk 16] [--runs 1000]
+                                     [--devices N] [--rounds 3] [--pymoo-runs 2]
+    python benchmarks/bench_sweep.py --pop 8 --iters 3 --chunk 2 --rounds 1 --pymoo-runs 1  # quick
 
 Times :func:`dockjax.sweep.run_chunk` (one compiled vmapped IMOCS call over ``--chunk`` runs,
-each with its own seed, ρ and α_max, plus the indicators of every run): the first call
-(compile + run) and the best of two further calls. Extrapolates the wall time of a sweep of
+each with its own seed, ρ and α_max, plus the indicators of every run) with the runs
+sharded over ``--devices`` CPU devices (default: one per usable core, as the sweep CLI),
+and, as the peer in the same process, on one device (XLA's intra-op threads only): the
+first call of each (compile + run), then ``--rounds`` interleaved rounds of one call each;
+medians are quoted. Extrapolates the wall time of a sweep of
 ``--runs`` runs in chunks of that size (one compilation + ceil(runs / chunk) chunks, in
 process, no chunk-file I/O which is milliseconds). Then times pymoo's NSGA-II with the same
 budget (population ``--pop``, ``--iters`` + 1 generations) on the same compiled kernel (via
@@ -32,7 +36,12 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=1000, help="sweep size to extrapolate to")
     ap.add_argument("--pymoo-runs", type=int, default=2)
     ap.add_argument("--preset", default="paper", choices=("paper", "wide"))
+    ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved timed rounds")
     args = ap.parse_args()
+    from dockjax.cli import usable_cores, use_cpu_devices
+
+    devices = use_cpu_devices(args.devices or usable_cores())  # before any JAX computation
 
     n = args.chunk
     rng = np.random.default_rng(0)
@@ -44,26 +53,32 @@ def main() -> None:
                          alpha_max=tuple(rng.choice([0.05, 0.1, 0.2], n).tolist()), n_real=n)
 
     t0 = time.perf_counter()
-    pilot = run_chunk(spec(10_000))  # compiles the optimiser
+    pilot = run_chunk(spec(10_000), devices=devices)  # compiles; the indicators' reference front
+    pilot_s = time.perf_counter() - t0
     front = _nondominated_2d(pilot["front_F"])
     ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": 1.1}
-    run_chunk(spec(20_000), ref)  # compiles the indicators
-    first = time.perf_counter() - t0
-    times = []
-    for k in range(2):
-        t0 = time.perf_counter()
-        run_chunk(spec(k * n), ref)
-        times.append(time.perf_counter() - t0)
-    chunk_s = min(times)
-    per_run = chunk_s / n
+    layouts = {"one device": 1, f"{devices} devices": devices} if devices > 1 else {"one device": 1}
+    times = {k: [] for k in layouts}
+    for d in layouts.values():  # compile every layout (and the indicators) before timing
+        run_chunk(spec(20_000), ref, devices=d)
+    for k in range(args.rounds):
+        for name, d in layouts.items():
+            t0 = time.perf_counter()
+            run_chunk(spec(k * n), ref, devices=d)
+            times[name].append(time.perf_counter() - t0)
     chunks = math.ceil(args.runs / n)
-    compile_s = max(first - 2 * chunk_s, 0.0)
-    total = compile_s + chunks * chunk_s
-    print(f"IMOCS pop {args.pop}, {args.iters} iterations, chunks of {n} runs ({args.preset} preset)")
-    print(f"  compile (optimiser + indicators): ~{compile_s:.1f} s")
-    print(f"  one chunk: {chunk_s:.2f} s = {per_run:.3f} s per run, {n / chunk_s:.2f} runs/s")
-    print(f"  extrapolated sweep of {args.runs} runs: {chunks} chunks, {total:.0f} s "
-          f"({total / 60:.1f} min) incl. one compilation")
+    compile_s = max(pilot_s - float(np.median(times[list(layouts)[-1]])), 0.0)
+    print(f"IMOCS pop {args.pop}, {args.iters} iterations, chunks of {n} runs ({args.preset} preset), "
+          f"median of {args.rounds} interleaved rounds; compile ~{compile_s:.1f} s")
+    for name in layouts:
+        chunk_s = float(np.median(times[name]))
+        total = compile_s + chunks * chunk_s
+        print(f"  {name}: one chunk {chunk_s:.2f} s = {chunk_s / n:.3f} s per run, {n / chunk_s:.2f} runs/s; "
+              f"{args.runs} runs: {chunks} chunks + compile = {total:.0f} s ({total / 60:.1f} min)")
+    best = min(layouts, key=lambda k: np.median(times[k]))
+    if len(layouts) > 1:
+        print(f"  {best} fastest: {np.median(times['one device']) / np.median(times[best]):.2f}x one device")
+    per_run = float(np.median(times[best])) / n
 
     if args.pymoo_runs > 0:
         try:

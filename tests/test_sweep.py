@@ -138,6 +138,7 @@ def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
     (["--seeds", "0"], "--seeds must be >= 1"),
     (["--refine-steps", "-1"], "--refine-steps must be >= 0"),
     (["--scheduler", "tcp://localhost:1"], "--scheduler needs --backend dask"),
+    (["--devices", "0"], "--devices must be >= 1"),
 ])
 def test_bad_input_exits_2_before_compiling_and_leaves_no_folder(tmp_path, capsys, extra, message):
     out = tmp_path / "new" / "sweep"
