@@ -11,6 +11,7 @@ every function works elementwise on arrays of coefficients (any leading shape).
 
 from __future__ import annotations
 
+from functools import partial
 from math import comb
 
 import jax
@@ -19,13 +20,39 @@ import jax.numpy as jnp
 from .bspline import poly_derivative, poly_eval
 
 __all__ = [
-    "quadratic_roots", "bracketed_root", "roots_in_brackets", "chain_extrema", "span_maxima",
+    "reduce_max", "quadratic_roots", "bracketed_root", "roots_in_brackets", "chain_extrema", "span_maxima",
     "span_bounds", "rate_maxima",
 ]
 
 NEWTON_STEPS = 8
 """Safeguarded Newton steps per bracket (quadratic convergence; the value at a root of the
 derivative is accurate to second order in the root's error)."""
+
+
+@partial(jax.custom_jvp, nondiff_argnums=(1,))
+def reduce_max(x, axis):
+    """``jnp.max(x, axis)`` (an int or a tuple of ints) whose derivative is the tangent
+    at the first maximising element (a valid one-sided derivative).
+
+    JAX's own rule for ``max`` finds the maximising elements by comparing ``x`` with the
+    result for equality and divides by their count. XLA may compute ``x`` twice, in two
+    fusions rounded differently; then no element compares equal and the derivative is
+    0/0 = NaN (observed with XLA:CPU at ``--xla_backend_optimization_level=0``). Selecting
+    by ``argmax`` needs no equality. The value, and so the kernel, is unchanged."""
+    return jnp.max(x, axis)
+
+
+@reduce_max.defjvp
+def _reduce_max_jvp(axis, primals, tangents):
+    (x,), (t,) = primals, tangents
+    axes = (axis,) if isinstance(axis, int) else tuple(axis)
+    axes = tuple(a % x.ndim for a in axes)
+    keep = [a for a in range(x.ndim) if a not in axes]
+    # the reduced axes moved last and flattened into one: a single argmax
+    flat = lambda a: jnp.transpose(a, keep + list(axes)).reshape([x.shape[k] for k in keep] + [-1])  # noqa: E731
+    xf, tf = flat(x), flat(t)
+    i = jnp.argmax(xf, axis=-1)[..., None]
+    return jnp.max(x, axis), jnp.take_along_axis(tf, i, axis=-1)[..., 0]
 
 
 def _safe_div(num, den):
@@ -170,12 +197,12 @@ def _at(c, t):
 def _rate_maxima(d, h, vt, vw, at):
     """max |Q'| and |Q''| from the critical times (see :func:`span_maxima`); d: the series
     of Q and its first three derivatives."""
-    amax = jnp.max(jnp.abs(_at(d[2], at)), -1)
+    amax = reduce_max(jnp.abs(_at(d[2], at)), -1)
     jpeak, _ = _safe_div(-d[3][..., 1], 2.0 * d[3][..., 2])  # vertex of the quadratic jerk
     jpeak = jax.lax.stop_gradient(jnp.clip(jpeak, 0.0, h))  # envelope theorem, as above
     jt = jnp.stack([jnp.zeros_like(h), h, jpeak], -1)
-    jmax = jnp.max(jnp.abs(_at(d[3], jt)), -1)
-    vmax = jnp.max(
+    jmax = reduce_max(jnp.abs(_at(d[3], jt)), -1)
+    vmax = reduce_max(
         jnp.abs(_at(d[1], vt)) + jnp.abs(_at(d[2], vt)) * vw + 0.5 * jmax[..., None] * vw * vw, -1
     )
     return vmax, amax
@@ -193,7 +220,7 @@ def span_maxima(c, h):
     (tt, tw), (vt, vw), at = times
     d = [c] + [poly_derivative(c, k) for k in range(1, 4)]
     vmax, amax = _rate_maxima(d, h, vt, vw, at)
-    pmax = jnp.max(
+    pmax = reduce_max(
         jnp.abs(_at(d[0], tt)) + jnp.abs(_at(d[1], tt)) * tw + 0.5 * amax[..., None] * tw * tw, -1
     )
     return jnp.stack([pmax, vmax, amax], -1), times

@@ -401,12 +401,12 @@ def _maxima(problem: DockingProblem, c, h, ref, *, with_need: bool = False):
     polys = materialize(_joint_polys(problem, c, h, ref))
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     spans, times = extrema.span_maxima(polys, hh)
-    lin = jnp.max(spans, axis=0)  # (8, 3)
+    lin = extrema.reduce_max(spans, 0)  # (8, 3)
     if problem.right_arm == "exact":
         right = _right_polished(problem, c, h, ref, times)
         need = jnp.zeros((), bool)
     else:
-        rem = _right_remainder_bounds(problem, c, h, ref).max(axis=0)  # (3 joints, 3)
+        rem = extrema.reduce_max(_right_remainder_bounds(problem, c, h, ref), 0)  # (3 joints, 3)
         right = lin[4:7] + rem
         need = jnp.any(2.0 * rem > BOUND_TOLERANCE * problem.limits[4:7])
     out = lin.at[4:7].set(right)
@@ -442,7 +442,7 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     polys = materialize(_joint_polys(problem, c, h, ref))  # (6, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     low, up = materialize(extrema.span_bounds(polys, hh))  # (6, 8, 3); read by several fusions
-    rem = _right_remainder_bounds(problem, c, h, ref).max(axis=0)  # (3 joints, 3)
+    rem = extrema.reduce_max(_right_remainder_bounds(problem, c, h, ref), 0)  # (3 joints, 3)
     extra = jnp.zeros((8, 3), c.dtype).at[4:7].set(rem)
     lim = problem.limits
     top = low.max(axis=0)
@@ -461,12 +461,12 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     # rates: the largest U of the spans not sent to the chain, then each chain result
     # (never above its span's U) at its joint; all values are >= 0
     slotted = flags & (rank < SCREEN_SLOTS)
-    rate = jnp.where(slotted[:, None], 0.0, up_items[:, 1:]).reshape(up.shape[:2] + (2,)).max(axis=0)
+    rate = extrema.reduce_max(jnp.where(slotted[:, None], 0.0, up_items[:, 1:]).reshape(up.shape[:2] + (2,)), 0)
     joint = jnp.arange(up.shape[1])
     for r in range(SCREEN_SLOTS):
         hit = (joint == idx[r] % up.shape[1]) & jnp.any(slots[r])  # (8,)
         rate = jnp.maximum(rate, jnp.where(hit[:, None], jnp.minimum(up_items[idx[r], 1:], exact[r]), 0.0))
-    M = jnp.concatenate([up[..., :1].max(axis=0), rate], axis=1) + extra
+    M = jnp.concatenate([extrema.reduce_max(up[..., :1], 0), rate], axis=1) + extra
     need = jnp.any(2.0 * rem > BOUND_TOLERANCE * lim[4:7])
     over = (jnp.sum(flags) > SCREEN_SLOTS) | jnp.any(fail[:, 0])
     return M, need, over, (polys.reshape(n_items, -1), hh.reshape(-1), extra)
@@ -560,7 +560,7 @@ def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 4):
         vals = jnp.concatenate(
             [jnp.abs(first[:, :, sel] - shift), jnp.abs(q0[:, :, sel] - shift) + extra[:, :, sel],
              jnp.abs(end[..., k] - (home if k == 0 else 0.0)).swapaxes(1, 2)], 2)  # (6, 3, ·)
-        right.append(vals.max(axis=(0, 2)))
+        right.append(extrema.reduce_max(vals, (0, 2)))
     return jnp.stack(right, axis=1)
 
 

@@ -24,11 +24,6 @@ os.environ.setdefault("DOCKJAX_CACHE", str(CACHE))
 def pytest_configure(config):
     import jax
 
-    # Two CPU devices, as the sweep CLI gives a 2-core machine: every batched ``optimize``
-    # of the tests (scan driver, 2+ runs) then runs sharded over them, so the suite checks
-    # that path throughout (e.g. batched runs against one-by-one runs); ``devices=1`` in a
-    # test selects the single-device program.
-    jax.config.update("jax_num_cpu_devices", 2)
     CACHE.mkdir(exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(CACHE))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
