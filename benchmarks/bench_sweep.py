@@ -39,6 +39,8 @@ def main() -> None:
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved timed rounds")
     args = ap.parse_args()
+    if args.devices is not None and args.devices < 1:
+        ap.error(f"--devices must be >= 1, got {args.devices}")
     from dockjax.cli import usable_cores, use_cpu_devices
 
     devices = use_cpu_devices(args.devices or usable_cores())  # before any JAX computation
