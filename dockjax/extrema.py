@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from .bspline import poly_derivative, poly_eval
+from .fusion import materialize
 
 __all__ = [
     "reduce_max", "quadratic_roots", "bracketed_root", "roots_in_brackets", "chain_extrema", "span_maxima",
@@ -257,6 +258,12 @@ def _sampled_max(terms, m):
     return out
 
 
+def _derivative_terms(terms):
+    """The derivative of Σ_p terms[p] s^p as a list (what :func:`poly_derivative` computes,
+    term by term)."""
+    return [terms[p] * float(p) for p in range(1, len(terms))]
+
+
 def _bernstein_max(terms):
     """max |Bernstein coefficient| of Σ_p terms[p] s^p on [0, 1]: a bound of max |.| there
     (convex hull property)."""
@@ -289,13 +296,16 @@ def span_bounds(c, h):
         hp = hp * h
     ih = 1.0 / h
     mp, mv, ma = SAMPLES
-    scaled = jnp.stack(terms, -1)
-    vel, acc, jerk, snap = (
-        [d[..., p] for p in range(d.shape[-1])] for d in (poly_derivative(scaled, k) for k in (1, 2, 3, 4))
-    )
-    lp = _sampled_max(terms, mp)
-    lv = _sampled_max(vel, mv) * ih
-    la = _sampled_max(acc, ma) * ih * ih
+    # the derivatives' coefficients as lists of arrays (the products of poly_derivative,
+    # in its order): stacking them on a short last axis made XLA move the spans off the
+    # vectorised minor axis
+    vel = _derivative_terms(terms)
+    acc = _derivative_terms(vel)
+    jerk = _derivative_terms(acc)
+    snap = _derivative_terms(jerk)
+    # the samples are the dear part: computed once (XLA fused them into both results)
+    lp, lv, la = materialize(
+        (_sampled_max(terms, mp), _sampled_max(vel, mv) * ih, _sampled_max(acc, ma) * ih * ih))
     us = jnp.maximum(jnp.abs(snap[0]), jnp.abs(snap[0] + snap[1])) * ih**4
     uj = _bernstein_max(jerk) * ih**3
     gap = 0.125 * h * h
