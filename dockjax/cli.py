@@ -43,9 +43,10 @@ def usable_cores() -> int:
 
 def use_cpu_devices(n: int) -> int:
     """Ask JAX for ``n`` CPU devices (CLIs only; must run before the process's first JAX
-    computation). Runs batched by :func:`dockjax.algorithms.optimize` are then sharded over
-    them: on this 2-core CPU two devices give ~1.3× the throughput of one device with
-    XLA's intra-op threads (README, Performance). Returns the number of CPU devices JAX
+    computation). Runs batched by :func:`dockjax.algorithms.optimize`, and the rows of
+    :meth:`dockjax.DockingProblem.evaluate`, are then shared out over them
+    (:mod:`dockjax.devices`): on this 2-core CPU two devices give about twice the
+    throughput of one device with XLA's intra-op threads (README, Performance). Returns the number of CPU devices JAX
     has: unchanged if its backend was already initialised (e.g. a CLI's ``main`` called
     twice in one process)."""
     import jax
@@ -79,6 +80,7 @@ def demo(args: DemoArgs) -> int:
     if args.top < 1:
         print(f"error: --top must be >= 1, got {args.top}", file=sys.stderr)
         return 2
+    use_cpu_devices(usable_cores())  # before any JAX computation: the rows are shared out
     enable_compilation_cache()
     import jax
 
@@ -175,6 +177,7 @@ def plan_cmd(args: PlanArgs) -> int:
     if args.pop < 4 or args.iters < 1:
         return bad(f"--pop must be >= 4 and --iters >= 1, got {args.pop} and {args.iters}")
     weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
+    use_cpu_devices(usable_cores())  # before any JAX computation (DockingProblem computes)
     try:
         select.check_weights(weights, 2)
         extra = load_limits(args.limits) if args.limits is not None else {}

@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import bspline, config, extrema, jets
+from . import devices as dev
 from .fusion import materialize
 from .kinematics import inverse_kinematics
 
@@ -262,7 +263,7 @@ class DockingProblem:
         return arr
 
     def evaluate(
-        self, X, *, precision: str = "float64", screen: bool = True
+        self, X, *, precision: str = "float64", screen: bool = True, devices: int | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Score a population in one compiled call.
 
@@ -272,7 +273,9 @@ class DockingProblem:
         1e-5 relative; for quick looks only). ``screen=False`` sends every knot span through
         the exact root chain (about 2.5× slower): every column is then exact to rounding,
         instead of exact near its limit (within 5 %) and at most 0.009 above the truth
-        elsewhere (SPEC §6 allows 0.01); see :func:`score_batch`.
+        elsewhere (SPEC §6 allows 0.01); see :func:`score_batch`. ``devices``: how many of
+        JAX's local devices share the rows (default all, at most one per
+        :data:`ROWS_PER_DEVICE` rows; see :mod:`dockjax.devices`).
         """
         arr = self.check_population(X)
         if precision not in ("float64", "float32"):
@@ -280,15 +283,17 @@ class DockingProblem:
         if not isinstance(screen, (bool, np.bool_)):
             raise ValueError(f"screen must be True or False, got {screen!r}")
         n = arr.shape[0]
+        devs = dev.choose(devices, -(-n // ROWS_PER_DEVICE))
         # pad to a bucket of rows (copies of row 0, dropped again): populations of nearby
-        # sizes share one compiled shape
-        padded = pad_rows(arr, bucket_rows(n)) if n else arr
-        if precision == "float64":
-            with jax.enable_x64(True):
-                F, G = _evaluate_batch(self, jnp.asarray(padded), screen=bool(screen))
-                return np.asarray(F)[:n], np.asarray(G)[:n]
-        F, G = _evaluate_batch(self, jnp.asarray(padded, jnp.float32), screen=bool(screen))
-        return np.asarray(F, np.float64)[:n], np.asarray(G, np.float64)[:n]
+        # sizes share one compiled shape; every device gets as many rows
+        rows = -(-bucket_rows(n) // len(devs)) * len(devs)
+        padded = pad_rows(arr, rows) if n else arr
+        where = dev.mesh(devs)
+        dtype = jnp.float64 if precision == "float64" else jnp.float32
+        with jax.enable_x64(precision == "float64"):
+            Xj = dev.put(jnp.asarray(padded, dtype), where)
+            F, G = dev.sharded(_evaluate_rows, (bool(screen),), where, (dev.SAME, dev.SHARDED), self, Xj)
+            return np.asarray(F, np.float64)[:n], np.asarray(G, np.float64)[:n]
 
     def evaluate_jax(self, X, *, screen: bool = True):
         """Traceable batch scoring for use inside jit/vmap (the caller sets the precision).
@@ -633,6 +638,27 @@ def _score_plain(problem: DockingProblem, X, screen: bool = False):
     return F.T, G.T, need, over, spans
 
 
+KERNEL_CHUNK = 48
+"""Most candidates per pass of :func:`_score_chunked` (the batch kernel's default)."""
+
+
+def _score_chunked(problem: DockingProblem, X, screen: bool, chunk: int | None):
+    """:func:`_score_plain` in passes of at most ``chunk`` candidates (``lax.map``).
+
+    The kernel's intermediates for a pass then stay in the CPU's caches: one pass over
+    thousands of candidates streams every intermediate array (hundreds of kB each) through
+    memory. The rows are split evenly (padded with copies of row 0, dropped again)."""
+    n = X.shape[0]
+    chunk = KERNEL_CHUNK if chunk is None else chunk
+    if n <= chunk:
+        return _score_plain(problem, X, screen)
+    passes = -(-n // chunk)
+    size = -(-n // passes)
+    Xp = jnp.concatenate([X, jnp.broadcast_to(X[:1], (passes * size - n, X.shape[1]))])
+    out = jax.lax.map(lambda x: _score_plain(problem, x, screen), Xp.reshape(passes, size, -1))
+    return jax.tree_util.tree_map(lambda a: a.reshape((passes * size,) + a.shape[2:])[:n], out)
+
+
 ADAPTIVE_CHUNK = 32
 """Candidates per call of a re-scoring path (the ``"adaptive"`` right arm's exact path, the
 screen's overflow)."""
@@ -684,7 +710,7 @@ def _full_chain_rows(problem: DockingProblem, spans):
     return rows
 
 
-def score_batch(problem: DockingProblem, X, screen: bool = True):
+def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | None = None):
     """Traceable batch scoring: X (n, n_var) → F (n, 2), G (n, 24).
 
     ``screen`` (default): the limit columns come from :func:`_maxima_screened` (cheap
@@ -700,7 +726,7 @@ def score_batch(problem: DockingProblem, X, screen: bool = True):
     """
     mode = "bound" if problem.right_arm == "adaptive" else problem.right_arm
     bound = problem.with_right_arm(mode)
-    F, G, need, over, spans = _score_plain(bound, X, screen)
+    F, G, need, over, spans = _score_chunked(bound, X, screen, chunk)
     if spans is not None:
         over = over & ~need if problem.right_arm == "adaptive" else over
         G = _replace_rows(G, over, _full_chain_rows(bound, spans), SCREEN_CHUNK)
@@ -709,7 +735,15 @@ def score_batch(problem: DockingProblem, X, screen: bool = True):
     return F, G
 
 
-_evaluate_batch = jax.jit(score_batch, static_argnames="screen")
+@partial(jax.jit, static_argnums=0)
+def _evaluate_rows(screen: bool, problem: DockingProblem, X):
+    """:func:`score_batch` for :meth:`DockingProblem.evaluate` (``screen`` first: static)."""
+    return score_batch(problem, X, screen)
+
+
+ROWS_PER_DEVICE = 256
+""":meth:`DockingProblem.evaluate` gives a device at least this many rows (fewer are
+quicker on one device than shared out)."""
 
 
 def pad_rows(a: np.ndarray, size: int) -> np.ndarray:

@@ -84,7 +84,9 @@ def main(args: Args) -> int:
     if errors:
         print("error: " + "; ".join(errors), file=sys.stderr)
         return 2
-    from dockjax.cli import enable_compilation_cache
+    from dockjax.cli import enable_compilation_cache, usable_cores, use_cpu_devices
+
+    use_cpu_devices(usable_cores())  # before any JAX computation: each core runs its share of the runs
     from dockjax.study import (best_known_cached, make_problem, refine_rows, run_study, study_right_arm,
                                summary_table, write_study)
 

@@ -25,11 +25,18 @@ from dockjax.algorithms import ZDT1, optimize
 out = {"devices": len(jax.local_devices())}
 kw = dict(seeds=[3, 4, 5], pop_size=10, n_iter=4, hv_ref=np.array([1.2, 6.0]),
           batch_params={"rho": [0.3, 0.4, 0.6]})
+for driver in ("scan", "host"):
+    for label, d in (("one", 1), ("two", None)):
+        r = optimize("imocs", ZDT1(n_var=5), devices=d, driver=driver, **kw)
+        out[f"{driver}_{label}_devices"] = r.extra["devices"]
+        for field in ("U", "F", "G", "cv", "front", "history"):
+            out[f"{driver}_{label}_{field}"] = getattr(r, field)
+from dockjax import DockingProblem
+problem = DockingProblem()
+X = np.random.default_rng(1).uniform(problem.lower, problem.upper, (600, problem.n_var))
 for label, d in (("one", 1), ("two", None)):
-    r = optimize("imocs", ZDT1(n_var=5), devices=d, **kw)
-    out[f"{label}_devices"] = r.extra["devices"]
-    for field in ("U", "F", "G", "cv", "front", "history"):
-        out[f"{label}_{field}"] = getattr(r, field)
+    for screen in (True, False):
+        out[f"evaluate_{label}_{screen}"] = np.concatenate(problem.evaluate(X, devices=d, screen=screen), axis=1)
 with jax.enable_x64(True):
     rng = np.random.default_rng(0)
     c = jnp.asarray(rng.normal(size=(6, 8, 6)))
@@ -50,16 +57,36 @@ def other_process(tmp_path_factory):
     return dict(np.load(path))
 
 
-def test_runs_sharded_over_two_devices_equal_one_device(other_process):
+@pytest.mark.parametrize("driver", ["scan", "host"])
+def test_runs_sharded_over_two_devices_equal_one_device(other_process, driver):
     """``optimize`` spreads a batch of runs over the local devices (``shard_map``, each
-    device its share; three runs on two devices are padded to four): the final
-    populations, fronts and hypervolume histories must be bit-identical to the
+    device its share; three runs on two devices are padded to four), with either driver:
+    the final populations, fronts and hypervolume histories must be bit-identical to the
     single-device program's."""
-    o = other_process
-    assert int(o["devices"]) == 2 and (int(o["one_devices"]), int(o["two_devices"])) == (1, 2)
+    o = {k[len(driver) + 1:]: v for k, v in other_process.items() if k.startswith(driver + "_")}
+    assert int(other_process["devices"]) == 2 and (int(o["one_devices"]), int(o["two_devices"])) == (1, 2)
     for field in ("U", "F", "G", "cv", "front", "history"):
         np.testing.assert_array_equal(o[f"two_{field}"], o[f"one_{field}"], err_msg=field)
     assert o["two_F"].shape[0] == 3 and not np.array_equal(o["two_U"][0], o["two_U"][2])
+
+
+def test_evaluate_shared_over_two_devices_equals_one_device(other_process):
+    """``DockingProblem.evaluate`` shares 600 rows out over two devices (320 each, padded):
+    without screening the scores must equal one device's to rounding (the rows sit at
+    other places of the vectorised loops); with it, F likewise, and each G column within
+    the screen's allowance (a row may be re-scored by the full chain in one layout and not
+    the other, and both values are valid)."""
+    from dockjax.problem import SCREEN_SLACK
+
+    o = other_process
+    for screen in ("True", "False"):
+        one, two = o[f"evaluate_one_{screen}"], o[f"evaluate_two_{screen}"]
+        assert one.shape == two.shape == (600, 26) and np.all(np.isfinite(one))
+        np.testing.assert_allclose(two[:, :2], one[:, :2], rtol=1e-12)
+        tol = 1e-12 if screen == "False" else SCREEN_SLACK
+        np.testing.assert_allclose(two[:, 2:], one[:, 2:], rtol=0, atol=tol)
+    # the screened columns are never below the exact ones
+    assert np.all(o["evaluate_two_True"][:, 2:] >= o["evaluate_one_False"][:, 2:] - 1e-12)
 
 
 def test_derivative_of_the_maxima_survives_recomputation(other_process):

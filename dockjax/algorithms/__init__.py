@@ -22,8 +22,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
-
+from .. import devices as dev
 from .. import pareto
 from . import base, imocs, mocs
 from .base import ZDT1, run
@@ -106,20 +105,6 @@ class Result:
         return out
 
 
-def run_devices(devices: int | None, n_runs: int) -> list:
-    """The local devices a batch of ``n_runs`` runs is spread over: the first ``devices``
-    of ``jax.local_devices()`` (None: all), at most one per run."""
-    local = jax.local_devices()
-    if devices is None:
-        devices = len(local)
-    elif isinstance(devices, bool) or not isinstance(devices, (int, np.integer)) or not 1 <= devices <= len(local):
-        raise ValueError(
-            f"devices must be an integer from 1 to {len(local)} (JAX's local devices; a CPU "
-            f"process gets more with jax.config.update('jax_num_cpu_devices', n) before its "
-            f"first computation), got {devices!r}")
-    return local[: max(1, min(int(devices), n_runs))]
-
-
 def _front_mask(F, cv):
     rank = pareto.nondominated_rank_2d(F, cv) if F.shape[1] == 2 else pareto.nondominated_rank(F, cv)
     return (rank == 0) & (cv <= 0)
@@ -148,19 +133,20 @@ def optimize(
     the final population of every run is polished by :func:`refine_result` (gradient
     refinement, :mod:`dockjax.refine`) and the algorithm is reported as ``"<name>+refine"``.
     ``driver``: ``"scan"`` (default) compiles the whole batch of runs into one program
-    (``jax.vmap`` of :func:`run`; the fastest per iteration); ``"host"`` drives the
-    iterations from Python around one shared call of the problem's kernel, whose compiled
-    program is then reused by every algorithm on problems of the same settings (the
-    fastest to compile when several algorithms run, as in a comparison; ~20 % slower per
+    (:func:`dockjax.algorithms.base.run_batch`; the fastest per iteration); ``"host"``
+    drives the iterations from Python around one shared call of the problem's kernel, whose
+    compiled program is then reused by every algorithm on problems of the same settings
+    (the fastest to compile when several algorithms run, as in a comparison; slower per
     iteration). Both give the same results up to rounding.
-    ``devices`` (scan driver; the host driver runs on one device): how many of JAX's local
-    devices the runs are spread over (default all of them, at most one per run). A CPU process has
-    one device unless it asks for more *before* its first JAX computation, e.g.
-    ``jax.config.update("jax_num_cpu_devices", 2)``, as the sweep CLI does (``--devices``):
-    on a 2-core CPU two devices run a chunk of runs ~1.3× faster than one device with
-    XLA's intra-op threads (README, Performance). The runs are padded to a multiple of the
-    device count (copies of the last run, dropped again); results equal the one-device
-    results (a test compares them). ``Result.extra["devices"]`` records the count used.
+    ``devices``: how many of JAX's local devices the runs are spread over (default all of
+    them, at most one per run; each device runs its share, :mod:`dockjax.devices`). A CPU
+    process has one device unless it asks for more *before* its first JAX computation,
+    e.g. ``jax.config.update("jax_num_cpu_devices", 2)``, as the CLIs do
+    (:func:`dockjax.cli.use_cpu_devices`): on a 2-core CPU two devices run a chunk of runs
+    about twice as fast as one device with XLA's intra-op threads (README, Performance).
+    The runs are padded to a multiple of the device count (copies of the last run, dropped
+    again); results equal the one-device results (a test compares them).
+    ``Result.extra["devices"]`` records the count used.
     Bad input raises ValueError before compiling.
     """
     algo = get(algorithm) if isinstance(algorithm, str) else algorithm
@@ -185,11 +171,7 @@ def optimize(
         hv_ref = np.asarray(hv_ref, dtype=np.float64)
         if hv_ref.shape != (2,) or not np.all(np.isfinite(hv_ref)):
             raise ValueError(f"hv_ref must be two finite numbers, got {hv_ref!r}")
-    devs = run_devices(devices, seeds.size)
-    if driver == "host":
-        if devices is not None and len(devs) > 1:
-            raise ValueError(f"devices > 1 needs driver='scan' (the host driver runs on one device), got {devices}")
-        devs = devs[:1]
+    devs = dev.choose(devices, seeds.size)
 
     t0 = time.perf_counter()
     n_runs, pad = seeds.size, -seeds.size % len(devs)
@@ -198,13 +180,14 @@ def optimize(
         keys = jax.vmap(jax.random.key)(jnp.asarray(padded(seeds)))
         overrides = {k: jnp.asarray(padded(v)) for k, v in batch_params.items()}
         ref = None if hv_ref is None else jnp.asarray(hv_ref)
-        if len(devs) > 1:
-            mesh = Mesh(np.asarray(devs), ("runs",))
-            keys, overrides = jax.device_put((keys, overrides), NamedSharding(mesh, PartitionSpec("runs")))
-            out = _run_batch_sharded(algo, n_iter, mesh, keys, problem, params, overrides, ref)
+        where = dev.mesh(devs)
+        keys, overrides = dev.put((keys, overrides), where)
+        if driver == "scan":
+            R, S = dev.SHARDED, dev.SAME
+            out = dev.sharded(_run_batch_scan, (algo, n_iter), where, (R, S, S, R, S), keys, problem, params,
+                              overrides, ref)
         else:
-            run_batch = _run_batch_scan if driver == "scan" else _run_batch_host
-            out = run_batch(algo, n_iter, keys, problem, params, overrides, ref)
+            out = _run_batch_host(algo, n_iter, keys, problem, params, overrides, ref, where)
         pop, front, trace = jax.tree_util.tree_map(lambda a: np.asarray(a)[:n_runs], out)
         X = np.asarray(base.to_natural(problem, jnp.asarray(pop.U)))
     seconds = time.perf_counter() - t0
@@ -252,37 +235,22 @@ _front_batch = jax.jit(jax.vmap(_front_mask))
 
 # -- the batch drivers of :func:`optimize` ---------------------------------------------------
 #
-# "scan": ``jax.vmap`` of :func:`run`, one compiled program per (algorithm, n_iter, shapes).
+# "scan": :func:`base.run_batch`, one compiled program per (algorithm, n_iter, shapes).
 # "host": one iteration of every run is three compiled calls: ``ask`` (vmapped over runs),
 # the problem's kernel on all runs' candidates at once, ``tell`` (vmapped). The kernel is one
 # program per (problem settings, rows) whatever the algorithm, so the four algorithms of a
 # comparison — and problems that differ only in their arrays (presets) — share its
 # compilation, the dear one; the per-algorithm programs are small. The result equals the
-# scan driver's up to rounding (a test compares them); per iteration it is ~20 % slower here
-# (measured in one process, 16 IMOCS runs of 150: 5.2 against 6.8 s).
+# scan driver's up to rounding (a test compares them).
+# Both run on each device of a mesh for its share of the runs (:func:`dockjax.devices.sharded`).
 
 
 @partial(jax.jit, static_argnames=("algo", "n_iter"))
 def _run_batch_scan(algo, n_iter, keys, problem, params, overrides, hv_ref):
-    def one(key, ov):
-        history = None if hv_ref is None else (lambda s: _history(algo, s, hv_ref))
-        state, trace = run(algo, key, problem, _with(params, ov), n_iter, history=history)
-        pop = algo.final_population(state)
-        return pop, _front_mask(pop.F, pop.cv), trace
-
-    return jax.vmap(one)(keys, overrides)
-
-
-@partial(jax.jit, static_argnames=("algo", "n_iter", "mesh"))
-def _run_batch_sharded(algo, n_iter, mesh, keys, problem, params, overrides, hv_ref):
-    """:func:`_run_batch_scan` on each device of ``mesh`` for its share of the runs
-    (``shard_map``): every device runs its own vmapped program, with no communication (a
-    while loop's batched condition stays per device instead of becoming a cross-device
-    all-reduce, as it would under automatic partitioning)."""
-    runs, same = PartitionSpec("runs"), PartitionSpec()
-    per_device = partial(_run_batch_scan, algo, n_iter)
-    return jax.shard_map(per_device, mesh=mesh, in_specs=(runs, same, same, runs, same), out_specs=runs,
-                         check_vma=False)(keys, problem, params, overrides, hv_ref)
+    history = None if hv_ref is None else (lambda s: _history(algo, s, hv_ref))
+    state, trace = base.run_batch(algo, keys, problem, params, n_iter, overrides=overrides, history=history)
+    pop = jax.vmap(algo.final_population)(state)
+    return pop, jax.vmap(_front_mask)(pop.F, pop.cv), trace
 
 
 def _with(params, ov):
@@ -333,15 +301,19 @@ def _batch_final(algo, state):
     return pop, jax.vmap(_front_mask)(pop.F, pop.cv)
 
 
-def _run_batch_host(algo, n_iter, keys, problem, params, overrides, hv_ref):
+def _run_batch_host(algo, n_iter, keys, problem, params, overrides, hv_ref, where=None):
     """Every run of a batch (keys, per-run hyper-parameter overrides) for ``n_iter``
-    iterations, driven from Python. → (final populations, front masks, history or None)."""
-    U, key0 = _batch_init_ask(algo, keys, problem, params, overrides)
-    state = _batch_init_tell(algo, key0, _batch_evaluate(problem, U), params, overrides)
+    iterations, driven from Python; each device of the mesh ``where`` (None: one device)
+    runs its share of the runs. → (final populations, front masks, history or None)."""
+    R, S = dev.SHARDED, dev.SAME
+    U, key0 = dev.sharded(_batch_init_ask, (algo,), where, (R, S, S, R), keys, problem, params, overrides)
+    pop = dev.sharded(_batch_evaluate, (), where, (S, R), problem, U)
+    state = dev.sharded(_batch_init_tell, (algo,), where, (R, R, S, R), key0, pop, params, overrides)
     trace = []
     for _ in range(n_iter):
-        U, state = _batch_ask(algo, state, problem, params, overrides)
-        state, hv = _batch_tell(algo, state, _batch_evaluate(problem, U), params, overrides, hv_ref)
+        U, state = dev.sharded(_batch_ask, (algo,), where, (R, S, S, R), state, problem, params, overrides)
+        pop = dev.sharded(_batch_evaluate, (), where, (S, R), problem, U)
+        state, hv = dev.sharded(_batch_tell, (algo,), where, (R, R, S, R, S), state, pop, params, overrides, hv_ref)
         trace.append(hv)
-    pop, front = _batch_final(algo, state)
+    pop, front = dev.sharded(_batch_final, (algo,), where, (R,), state)
     return pop, front, (None if hv_ref is None else jnp.stack(trace, axis=1))

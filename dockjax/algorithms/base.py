@@ -193,36 +193,61 @@ def run(
 ):
     """Initialise and iterate ``n_iter`` steps with ``lax.scan`` (traceable; jit it).
 
-    The loop is ``init`` followed by ``n_iter`` ``step``s, written so that the problem's
-    kernel appears once in the compiled program (it is the dear part to compile): the scan
-    runs ``n_iter + 1`` times, and each pass asks for candidates (the initial population in
-    pass 0, the algorithm's ``ask`` after), scores them, and hands the scores back
-    (``init_tell`` in pass 0, ``tell`` after). The result is the same as ``init`` then
-    ``step`` repeated.
-
-    ``history(state) -> pytree`` is recorded after every step (e.g. the hypervolume of the
-    current population) without leaving the compiled loop. Returns ``(state, trace)``.
+    One run of :func:`run_batch`: the result is the same as ``init`` then ``step``
+    repeated. ``history(state) -> pytree`` is recorded after every step (e.g. the
+    hypervolume of the current population) without leaving the compiled loop. Returns
+    ``(state, trace)``; ``jax.vmap`` of it over keys or ``Params`` leaves runs a batch.
     """
-    U0, key0 = algorithm.init_ask(key, problem, params)
-    n = U0.shape[0]
-    blank = Population(
-        U=U0, F=jnp.zeros((n, problem.n_obj), U0.dtype), G=jnp.zeros((n, problem.n_con), U0.dtype),
-        cv=jnp.zeros((n,), U0.dtype),
-    )
-    state = algorithm.init_tell(key0, blank, params)  # a placeholder of the state's shape
+    out = run_batch(algorithm, key[None], problem, params, n_iter, history=history)
+    return jax.tree_util.tree_map(lambda a: a[0], out)
+
+
+def run_batch(
+    algorithm: ModuleType,
+    keys: jax.Array,
+    problem,
+    params,
+    n_iter: int,
+    *,
+    overrides: dict | None = None,
+    history: Callable | None = None,
+):
+    """A batch of runs (``keys`` (runs,)) of :func:`run` in one ``lax.scan`` (traceable).
+
+    ``overrides`` maps ``Params`` field names to per-run arrays (runs,) (e.g. ρ of a
+    sweep). The algorithm's ``ask`` and ``tell`` are vmapped over the runs, and the
+    problem's kernel is called once per pass on every run's candidates together (so the
+    kernel, not ``vmap``, decides how it walks through them: see
+    :func:`dockjax.problem.score_batch`). The kernel appears once in the compiled program
+    (it is the dear part to compile): the scan runs ``n_iter + 1`` times, and each pass
+    asks for candidates (the initial population in pass 0, the algorithm's ``ask`` after),
+    scores them, and hands the scores back (``init_tell`` in pass 0, ``tell`` after).
+    Returns ``(state, trace)`` with the runs on the leading axis of every leaf.
+    """
+    ov = dict(overrides or {})
+
+    def per_run(f):
+        return jax.vmap(lambda o, *a: f(*a, replace(params, **o) if o else params))
+
+    U0, key0 = per_run(lambda k, p: algorithm.init_ask(k, problem, p))(ov, keys)
+    runs, n = U0.shape[:2]
+    init_tell = per_run(algorithm.init_tell)
+    ask = per_run(lambda s, p: algorithm.ask(s, problem, p))
+    tell = per_run(algorithm.tell)
+    zeros = lambda m: jnp.zeros((runs, n, m), U0.dtype)  # noqa: E731
+    blank = Population(U=U0, F=zeros(problem.n_obj), G=zeros(problem.n_con), cv=zeros(1)[..., 0])
+    state = init_tell(ov, key0, blank)  # a placeholder of the state's shape
 
     def body(s, i):
-        first = i == 0  # not batched under vmap, so the conds stay branches
-        U, s = jax.lax.cond(first, lambda s: (U0, s), lambda s: algorithm.ask(s, problem, params), s)
-        pop = evaluate_unit(problem, U)
-        s = jax.lax.cond(
-            first, lambda s, p: algorithm.init_tell(key0, p, params),
-            lambda s, p: algorithm.tell(s, p, params), s, pop,
-        )
-        return s, (history(s) if history is not None else None)
+        first = i == 0  # not batched, so the conds stay branches
+        U, s = jax.lax.cond(first, lambda s: (U0, s), lambda s: ask(ov, s), s)
+        pop = evaluate_unit(problem, U.reshape(runs * n, -1))
+        pop = jax.tree_util.tree_map(lambda a: a.reshape((runs, n) + a.shape[1:]), pop)
+        s = jax.lax.cond(first, lambda s, p: init_tell(ov, key0, p), lambda s, p: tell(ov, s, p), s, pop)
+        return s, (jax.vmap(history)(s) if history is not None else None)
 
     state, trace = jax.lax.scan(body, state, jnp.arange(n_iter + 1))
-    return state, jax.tree_util.tree_map(lambda a: a[1:], trace)
+    return state, jax.tree_util.tree_map(lambda a: jnp.moveaxis(a[1:], 0, 1), trace)
 
 
 def replace(obj, **changes):

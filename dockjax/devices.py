@@ -1,0 +1,73 @@
+"""Spreading independent work — optimisation runs, candidates to score — over JAX's devices.
+
+Every device gets its share through ``jax.shard_map`` and runs its own program, with no
+communication: nothing here needs a collective, and XLA:CPU's in-process collectives inside
+loops are fragile (automatic partitioning of a vmapped while loop turns its batched
+condition into a cross-device all-reduce; a trial deadlocked in the rendezvous).
+
+A CPU process has one device unless it asks for more *before* its first JAX computation:
+``jax.config.update("jax_num_cpu_devices", n)`` (:func:`dockjax.cli.use_cpu_devices`).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Callable
+
+import jax
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+__all__ = ["AXIS", "SHARDED", "SAME", "choose", "mesh", "put", "sharded"]
+
+AXIS = "items"
+"""The one mesh axis: runs of a batch, or rows of a population."""
+SHARDED = PartitionSpec(AXIS)
+"""Split along the leading axis."""
+SAME = PartitionSpec()
+"""The whole value on every device."""
+
+
+def choose(devices: int | None, n_items: int) -> list:
+    """The first ``devices`` of ``jax.local_devices()`` (None: all), at most one per item.
+
+    Raises ValueError for anything but an integer from 1 to the number of local devices."""
+    local = jax.local_devices()
+    if devices is None:
+        devices = len(local)
+    elif isinstance(devices, bool) or not isinstance(devices, (int, np.integer)) or not 1 <= devices <= len(local):
+        raise ValueError(
+            f"devices must be an integer from 1 to {len(local)} (JAX's local devices; a CPU "
+            f"process gets more with jax.config.update('jax_num_cpu_devices', n) before its "
+            f"first computation), got {devices!r}")
+    return local[: max(1, min(int(devices), n_items))]
+
+
+def mesh(devs: list) -> Mesh | None:
+    """A one-axis mesh over ``devs``, or None for a single device (no sharding)."""
+    return Mesh(np.asarray(devs), (AXIS,)) if len(devs) > 1 else None
+
+
+def put(tree, where: Mesh | None):
+    """Place a pytree split along its leading axis over the mesh (None: unchanged)."""
+    return tree if where is None else jax.device_put(tree, NamedSharding(where, SHARDED))
+
+
+@partial(jax.jit, static_argnames=("fn", "static", "where", "specs"))
+def _sharded(fn: Callable, static: tuple, where: Mesh, specs: tuple, *args):
+    body = partial(fn, *static)
+    return jax.shard_map(body, mesh=where, in_specs=specs, out_specs=SHARDED, check_vma=False)(*args)
+
+
+def sharded(fn: Callable, static: tuple, where: Mesh | None, specs: tuple, *args):
+    """``fn(*static, *args)``, each device of ``where`` computing it for its share.
+
+    ``specs``: one of :data:`SHARDED` (split along the leading axis, whose length the
+    caller makes a multiple of the device count) or :data:`SAME` per element of ``args``;
+    every output is split along its leading axis. ``fn`` and ``static`` must be hashable
+    (a module-level function and, e.g., an algorithm module): the program is compiled once
+    per (fn, static, mesh, shapes). ``where=None`` calls ``fn`` directly.
+    """
+    if where is None:
+        return fn(*static, *args)
+    return _sharded(fn, static, where, specs, *args)
