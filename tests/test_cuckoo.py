@@ -30,6 +30,7 @@ def test_mantegna_sigma_matches_the_closed_form_at_beta_1_5():
 def test_levy_steps_have_the_mantegna_scale():
     with jax.enable_x64(True):
         s = np.asarray(levy_step(jax.random.key(0), (200_000,), np.float64))
+    assert s.dtype == np.float64 and np.all(np.isfinite(s))
     # median of |u|/|v|^(2/3): compare with a numpy simulation of the same law
     rng = np.random.default_rng(1)
     ref = mantegna_sigma() * rng.normal(size=200_000) / np.abs(rng.normal(size=200_000)) ** (1 / 1.5)

@@ -39,12 +39,24 @@ def mantegna_sigma(beta: float = LEVY_BETA) -> float:
     return (num / den) ** (1 / beta)
 
 
+LEVY_V_FLOOR = 2.0**-24
+"""Smallest ``|v|`` of a Lévy step: a float32 normal draw is exactly 0 about once in 10⁷
+(the step is then 2¹⁶ σ_u |u|, far outside the unit box, and clipped like any long step)."""
+
+
 def levy_step(key, shape, dtype, beta: float = LEVY_BETA):
-    """Mantegna Lévy step ``u / |v|^(1/β)``, ``u ~ N(0, σ_u²)``, ``v ~ N(0, 1)`` per component."""
+    """Mantegna Lévy step ``u / |v|^(1/β)``, ``u ~ N(0, σ_u²)``, ``v ~ N(0, 1)`` per component.
+
+    Drawn and formed in float32, returned in ``dtype``: a step is a random number, for
+    which 24 bits are plenty, and JAX's float64 normal draw (by ``erf_inv``) and power cost
+    twice as much as the rest of a cuckoo iteration's variation (measured: 2.9 against
+    1.4 ms for 8 × 150 × 36 steps on one core). ``|v|`` is floored at
+    :data:`LEVY_V_FLOOR`, so a step is always finite.
+    """
     ku, kv = jax.random.split(key)
-    u = mantegna_sigma(beta) * jax.random.normal(ku, shape, dtype)
-    v = jax.random.normal(kv, shape, dtype)
-    return u / jnp.abs(v) ** (1.0 / beta)
+    u = mantegna_sigma(beta) * jax.random.normal(ku, shape, jnp.float32)
+    v = jnp.maximum(jnp.abs(jax.random.normal(kv, shape, jnp.float32)), LEVY_V_FLOOR)
+    return (u / v ** (1.0 / beta)).astype(dtype)
 
 
 def random_rank1_partner(key, rank):
