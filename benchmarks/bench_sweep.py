@@ -32,7 +32,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--pop", type=int, default=150)
     ap.add_argument("--iters", type=int, default=100)
-    ap.add_argument("--chunk", type=int, default=16, help="runs per compiled call")
+    ap.add_argument("--chunk", type=int, default=40, help="runs per compiled call")
     ap.add_argument("--runs", type=int, default=1000, help="sweep size to extrapolate to")
     ap.add_argument("--pymoo-runs", type=int, default=2)
     ap.add_argument("--preset", default="paper", choices=("paper", "wide"))

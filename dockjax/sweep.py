@@ -146,7 +146,7 @@ class SweepArgs:
     """Memetic finish: polish every run's final population with this many gradient-refinement steps (dockjax.refine; the algorithm column then reads e.g. imocs+refine). 0: off."""
     out: Path = Path("results/sweep")
     """Results folder (created). Re-run the same command on it to resume; a folder holding a different configuration is refused."""
-    chunk: int = 16
+    chunk: int = 40
     """Maximum runs per compiled call (part of the configuration: changing it refuses to resume)."""
     reference_front: Path | None = None
     """Best-known front (.npz with key 'front', or .csv with columns T, jerk) to score against; default: a deterministic pilot computed at sweep start (see the module docstring)."""
