@@ -579,9 +579,12 @@ def _mean_square_jerk(problem: DockingProblem, c, h, ref):
     xi, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
     tau = 0.5 * h[:, None] * (1.0 + jnp.asarray(xi, c.dtype))  # (6, n)
     weights = 0.5 * h[:, None] * jnp.asarray(w, c.dtype)
-    cj = bspline.poly_derivative(jnp.swapaxes(c, 1, 2), 3)  # (6, 6 coords, 3)
-    pj = bspline.poly_eval(cj[:, None], tau[..., None])  # (6, n, 6)
-    lin = jnp.einsum("kn,knj->j", weights, pj * pj)  # (6 coords,)
+    # joints linear in the pose: the jerk on a span is a quadratic a + bτ + cτ², whose
+    # square integrates in closed form over [0, h] (what the quadrature gives, exactly)
+    a, b, q = (m * c[:, k, :] for m, k in ((6.0, 3), (24.0, 4), (60.0, 5)))  # (6 spans, 6 coords)
+    hk = h[:, None]
+    lin = jnp.sum(hk * (a * a + hk * (a * b + hk * ((b * b + 2.0 * a * q) / 3.0
+                                                      + hk * (0.5 * b * q + hk * (q * q / 5.0))))), axis=0)
     # the right arm's third Taylor coefficients as separate arrays (no stacking: the
     # reverse pass, used by refinement, then fuses)
     right = [jnp.sum(weights * (6.0 * j[3]) ** 2) for j in right_terms(problem, c, tau, 3, (0, 1, 2), ref)]
