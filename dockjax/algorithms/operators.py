@@ -71,14 +71,17 @@ def random_rank1_partner(key, rank):
 def discovery(key, U, p_a):
     """Alien-egg discovery (Yang & Deb 2013; SPEC §7): each component changes with
     probability ``p_a`` by ``r (x_a − x_b)``, a, b random permutations, ``r ~ U(0, 1)`` per
-    component (the ``⊙`` of ALGORITHMS.md). U: (n, d) → (n, d)."""
+    component (the ``⊙`` of ALGORITHMS.md). U: (n, d) → (n, d).
+
+    The per-component uniforms (the mask's and r) are drawn in float32, as the Lévy steps:
+    half the random bits of float64 draws, which are a tenth of a cuckoo iteration here."""
     U = materialize(U)  # read at permuted rows below
     n, d = U.shape
     k1, k2, k3, k4 = jax.random.split(key, 4)
-    mask = jax.random.uniform(k1, (n, d), U.dtype) < p_a
+    mask = jax.random.uniform(k1, (n, d), jnp.float32) < p_a
     a = jax.random.permutation(k2, n)
     b = jax.random.permutation(k3, n)
-    r = jax.random.uniform(k4, (n, d), U.dtype)
+    r = jax.random.uniform(k4, (n, d), jnp.float32).astype(U.dtype)
     return U + jnp.where(mask, r * (U[a] - U[b]), 0.0)
 
 
