@@ -1,6 +1,6 @@
 """Evaluations per second of ``DockingProblem.evaluate`` beside a per-candidate SciPy loop.
 
-    python benchmarks/bench_evaluate.py [--sizes 150 10000 100000] [--repeats 5]
+    python benchmarks/bench_evaluate.py [--sizes 150 10000 100000] [--repeats 5] [--devices N]
 
 The peer is what a user would write without dockjax: for each candidate, a
 ``scipy.interpolate.BSpline`` converted to ``PPoly``; T and the jerk objective by
@@ -20,6 +20,7 @@ import numpy as np
 from scipy.interpolate import BSpline, PPoly
 
 from dockjax import DockingProblem
+from dockjax.problem import ROWS_PER_DEVICE
 
 DEG = np.pi / 180
 
@@ -99,8 +100,17 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[150, 10_000, 100_000])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--scipy-candidates", type=int, default=40)
+    ap.add_argument("--devices", type=int, default=None,
+                    help="CPU devices the rows are shared out over (default: one per usable core)")
     args = ap.parse_args()
+    if args.devices is not None and args.devices < 1:
+        ap.error(f"--devices must be >= 1, got {args.devices}")
+    if args.repeats < 1 or args.scipy_candidates < 1 or min(args.sizes) < 1:
+        ap.error("--sizes, --repeats and --scipy-candidates must be >= 1")
+    from dockjax.cli import usable_cores, use_cpu_devices
 
+    devices = use_cpu_devices(args.devices or usable_cores())  # before any JAX computation
+    print(f"{devices} CPU device(s); evaluate shares the rows out over them (at most one per {ROWS_PER_DEVICE} rows)")
     problem = DockingProblem()
     rng = np.random.default_rng(0)
     Xs = rng.uniform(problem.lower, problem.upper, (args.scipy_candidates, problem.n_var))
@@ -116,16 +126,20 @@ def main() -> None:
         agree_near = np.nanmax(np.abs(G - ref[:, 2:])[near]) if near.any() else float("nan")
         print(f"  screen={screen}: F agrees to {agree_f:.1e} rel; G to {agree_g:.1e} "
               f"({agree_near:.1e} on columns within 4 % of their limit)")
-    print(f"{'n':>8} {'precision':>9} {'screen':>6} {'compile s':>9} {'evals/s':>12} {'x scipy':>8}")
+    print(f"{'n':>8} {'precision':>9} {'screen':>6} {'devices':>7} {'compile s':>9} {'evals/s':>12} {'x scipy':>8}")
+    layouts = [("float64", True, None), ("float32", True, None), ("float64", False, None)]
+    if devices > 1:  # the peer layout: one device (XLA's intra-op threads)
+        layouts.append(("float64", True, 1))
     for n in args.sizes:
         X = rng.uniform(problem.lower, problem.upper, (n, problem.n_var))
-        for precision, screen in (("float64", True), ("float32", True), ("float64", False)):
+        for precision, screen, d in layouts:
+            run = lambda: problem.evaluate(X, precision=precision, screen=screen, devices=d)  # noqa: E731
             t0 = time.perf_counter()
-            problem.evaluate(X, precision=precision, screen=screen)
+            run()
             compile_s = time.perf_counter() - t0
-            t = median_time(lambda: problem.evaluate(X, precision=precision, screen=screen), args.repeats)
-            rate = n / t
-            print(f"{n:>8} {precision:>9} {str(screen):>6} {compile_s:>9.2f} {rate:>12,.0f} "
+            rate = n / median_time(run, args.repeats)
+            used = 1 if d == 1 else min(devices, -(-n // ROWS_PER_DEVICE))
+            print(f"{n:>8} {precision:>9} {str(screen):>6} {used:>7} {compile_s:>9.2f} {rate:>12,.0f} "
                   f"{rate / scipy_rate:>8.0f}")
 
 

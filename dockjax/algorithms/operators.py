@@ -39,24 +39,12 @@ def mantegna_sigma(beta: float = LEVY_BETA) -> float:
     return (num / den) ** (1 / beta)
 
 
-LEVY_V_FLOOR = 2.0**-24
-"""Smallest ``|v|`` of a Lévy step: a float32 normal draw is exactly 0 about once in 10⁷
-(the step is then 2¹⁶ σ_u |u|, far outside the unit box, and clipped like any long step)."""
-
-
 def levy_step(key, shape, dtype, beta: float = LEVY_BETA):
-    """Mantegna Lévy step ``u / |v|^(1/β)``, ``u ~ N(0, σ_u²)``, ``v ~ N(0, 1)`` per component.
-
-    Drawn and formed in float32, returned in ``dtype``: a step is a random number, for
-    which 24 bits are plenty, and JAX's float64 normal draw (by ``erf_inv``) and power cost
-    twice as much as the rest of a cuckoo iteration's variation (measured: 2.9 against
-    1.4 ms for 8 × 150 × 36 steps on one core). ``|v|`` is floored at
-    :data:`LEVY_V_FLOOR`, so a step is always finite.
-    """
+    """Mantegna Lévy step ``u / |v|^(1/β)``, ``u ~ N(0, σ_u²)``, ``v ~ N(0, 1)`` per component."""
     ku, kv = jax.random.split(key)
-    u = mantegna_sigma(beta) * jax.random.normal(ku, shape, jnp.float32)
-    v = jnp.maximum(jnp.abs(jax.random.normal(kv, shape, jnp.float32)), LEVY_V_FLOOR)
-    return (u / v ** (1.0 / beta)).astype(dtype)
+    u = mantegna_sigma(beta) * jax.random.normal(ku, shape, dtype)
+    v = jax.random.normal(kv, shape, dtype)
+    return u / jnp.abs(v) ** (1.0 / beta)
 
 
 def random_rank1_partner(key, rank):
@@ -71,17 +59,14 @@ def random_rank1_partner(key, rank):
 def discovery(key, U, p_a):
     """Alien-egg discovery (Yang & Deb 2013; SPEC §7): each component changes with
     probability ``p_a`` by ``r (x_a − x_b)``, a, b random permutations, ``r ~ U(0, 1)`` per
-    component (the ``⊙`` of ALGORITHMS.md). U: (n, d) → (n, d).
-
-    The per-component uniforms (the mask's and r) are drawn in float32, as the Lévy steps:
-    half the random bits of float64 draws, which are a tenth of a cuckoo iteration here."""
+    component (the ``⊙`` of ALGORITHMS.md). U: (n, d) → (n, d)."""
     U = materialize(U)  # read at permuted rows below
     n, d = U.shape
     k1, k2, k3, k4 = jax.random.split(key, 4)
-    mask = jax.random.uniform(k1, (n, d), jnp.float32) < p_a
+    mask = jax.random.uniform(k1, (n, d), U.dtype) < p_a
     a = jax.random.permutation(k2, n)
     b = jax.random.permutation(k3, n)
-    r = jax.random.uniform(k4, (n, d), jnp.float32).astype(U.dtype)
+    r = jax.random.uniform(k4, (n, d), U.dtype)
     return U + jnp.where(mask, r * (U[a] - U[b]), 0.0)
 
 
