@@ -4,10 +4,10 @@
 
 * ``F[:, 0] = T = Σ h_k`` (Eq. 24);
 * ``F[:, 1] = Σ_j sqrt((1/T) ∫_0^T q_j'''(t)² dt)`` over the eight joints (Eq. 25): the
-  integrand is exactly polynomial for the joints linear in the pose, and smooth for the
-  right arm's axial, lift and lateral joints (through sin/cos of pitch and yaw); both are
-  integrated by Gauss–Legendre per knot span (8 nodes by default: exact for the former,
-  accurate far below 1e-9 relative for the latter);
+  integrand is a polynomial for the joints linear in the pose (integrated in closed form
+  per knot span), and smooth for the right arm's axial, lift and lateral joints (through
+  sin/cos of pitch and yaw: Gauss–Legendre per knot span, 8 nodes by default, accurate
+  far below 1e-9 relative);
 * ``G[:, 3j + k] = max_t |quantity_k(t)| / limit_k − 1`` for joint j and quantity
   k ∈ (travel about home, velocity, acceleration) (SPEC §6). The maxima are exact: for the
   joints linear in the pose they sit at span ends or at roots of the next derivative,
@@ -575,7 +575,9 @@ def _jerk(problem: DockingProblem, c, h, ref):
 
 
 def _mean_square_jerk(problem: DockingProblem, c, h, ref):
-    """``(1/T) ∫ (d³q_j/dt³)² dt`` of the eight joints (8,), Gauss–Legendre per span (Eq. 25)."""
+    """``(1/T) ∫ (d³q_j/dt³)² dt`` of the eight joints (8,) (Eq. 25): in closed form per span
+    for the joints linear in the pose, by Gauss–Legendre per span for the right arm's
+    nonlinear ones."""
     xi, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
     tau = 0.5 * h[:, None] * (1.0 + jnp.asarray(xi, c.dtype))  # (6, n)
     weights = 0.5 * h[:, None] * jnp.asarray(w, c.dtype)
@@ -725,10 +727,12 @@ def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | No
     rows streams every intermediate array (hundreds of kB each) through memory. Measured
     on this CPU, one core, 2,400 candidates: ~1.5× faster than one pass.
     """
+    chunk = KERNEL_CHUNK if chunk is None else chunk
+    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
     adaptive = problem.right_arm == "adaptive"
     bound = problem.with_right_arm("bound" if adaptive else problem.right_arm)
     n = X.shape[0]
-    chunk = KERNEL_CHUNK if chunk is None else chunk
     passes = max(1, -(-n // chunk))
     size = -(-n // passes)
     if passes == 1:

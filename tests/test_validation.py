@@ -129,11 +129,21 @@ def test_non_finite_X_raises(problem, value, shown):
 
 
 @pytest.mark.parametrize(("kw", "match"), [({"precision": "float16"}, "precision"), ({"screen": "no"}, "screen"),
-                                           ({"screen": 1}, "screen")])
+                                           ({"screen": 1}, "screen"), ({"devices": 0}, "devices.*0"),
+                                           ({"devices": 2}, "devices.*2"), ({"devices": True}, "devices")])
 def test_bad_evaluate_options_raise(problem, kw, match):
     X = np.tile((problem.lower + problem.upper) / 2, (3, 1))
     with pytest.raises(ValueError, match=match):
         problem.evaluate(X, **kw)
+
+
+@pytest.mark.parametrize("chunk", [0, -3, 2.5, True])
+def test_bad_kernel_chunk_raises(problem, chunk):
+    from dockjax.problem import score_batch
+
+    X = np.tile((problem.lower + problem.upper) / 2, (3, 1))
+    with pytest.raises(ValueError, match=rf"chunk.*{chunk}"):
+        score_batch(problem, X, chunk=chunk)
 
 
 def test_reduced_X_of_full_width_raises():
