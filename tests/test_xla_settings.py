@@ -48,12 +48,28 @@ np.savez(sys.argv[1], **out)
 
 
 @pytest.fixture(scope="module")
-def other_process(tmp_path_factory):
-    path = tmp_path_factory.mktemp("xla") / "out.npz"
-    env = {**os.environ, "XLA_FLAGS": (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()}
-    r = subprocess.run([sys.executable, "-c", SCRIPT, str(path)], env=env, capture_output=True, text=True,
-                       timeout=600)
-    assert r.returncode == 0, r.stderr[-3000:]
+def other_process(tmp_path_factory, worker_id):
+    """The subprocess's results, computed once per test session: pytest-xdist workers share
+    them through a file in the session's temporary folder, under a lock (the pattern of
+    pytest-xdist's documentation; without ``fcntl`` every worker computes its own)."""
+    base = tmp_path_factory.getbasetemp()
+    root = base if worker_id == "master" else base.parent
+    path = root / "xla_settings.npz"
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        fcntl = None
+    with open(root / "xla_settings.lock", "w") as lock:
+        if fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        if fcntl is None or not path.exists():
+            part = root / f"xla_settings.{worker_id}.npz"
+            env = {**os.environ,
+                   "XLA_FLAGS": (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()}
+            r = subprocess.run([sys.executable, "-c", SCRIPT, str(part)], env=env, capture_output=True,
+                               text=True, timeout=600)
+            assert r.returncode == 0, r.stderr[-3000:]
+            os.replace(part, path)
     return dict(np.load(path))
 
 
