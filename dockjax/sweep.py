@@ -26,9 +26,10 @@ chunk shape). One chunk is one compiled, vmapped :func:`dockjax.algorithms.optim
 padded with repeats of its own runs, which are dropped. So there is one compilation per
 population size (per process). Both cores: the CLI asks JAX for one CPU device per usable
 core (``--devices``) and the chunk's runs are sharded over them (``shard_map``: each
-device runs its share, no communication; bit-identical results), ~1.3× the throughput of
-one device using XLA's intra-op threads on this 2-core host; worker processes pinned to
-one core each were no faster than one device and compile once each (README).
+device runs its share, no communication; bit-identical results), ~1.9× the throughput of
+one device on this 2-core host (the kernel's cache-sized passes are too small for XLA's
+intra-op threads); worker processes pinned to one core each were no faster and compile
+once each (README).
 
 Never losing work. Each finished chunk is written atomically (temporary file in the same
 folder, fsync, ``os.replace``), so a chunk file is either complete or absent, whatever
@@ -163,7 +164,7 @@ class SweepArgs:
     progress: bool = True
     """Show a progress bar (runs done, runs/s, ETA) on stderr."""
     devices: int | None = None
-    """CPU devices the runs of a chunk are sharded over (results are identical for any count; two devices on two cores run ~1.3x faster than one). Default: one per usable core. Not part of the configuration."""
+    """CPU devices the runs of a chunk are sharded over (results are identical for any count; two devices on two cores run ~1.9x faster than one). Default: one per usable core. Not part of the configuration."""
 
 
 @dataclass(frozen=True)
