@@ -267,11 +267,7 @@ def _batch_ask(algo, state, problem, params, overrides):
     return jax.vmap(lambda s, ov: algo.ask(s, problem, _with(params, ov)))(state, overrides)
 
 
-@jax.jit
-def _batch_evaluate(problem, U):
-    """Every run's candidates U (runs, n, d) scored in one call of the kernel."""
-    pop = base.evaluate_unit(problem, U.reshape((-1, U.shape[-1])))
-    return jax.tree_util.tree_map(lambda a: a.reshape(U.shape[:2] + a.shape[1:]), pop)
+_batch_evaluate = jax.jit(base.evaluate_runs)
 
 
 def _history(algo, state, hv_ref):

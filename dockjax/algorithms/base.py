@@ -42,6 +42,7 @@ __all__ = [
     "static",
     "Population",
     "evaluate_unit",
+    "evaluate_runs",
     "to_natural",
     "validate_common",
     "ZDT1",
@@ -81,6 +82,13 @@ def evaluate_unit(problem, U) -> Population:
     F, G = problem.evaluate_jax(to_natural(problem, U))
     cv = pareto.total_violation(G) if G.shape[-1] else jnp.zeros(U.shape[0], U.dtype)
     return Population(U=U, F=F, G=G, cv=cv)
+
+
+def evaluate_runs(problem, U) -> Population:
+    """Every run's candidates U (runs, n, d) scored in one call of the kernel (not under
+    ``vmap``: the kernel decides how it walks through them). → Population of (runs, n, ·)."""
+    pop = evaluate_unit(problem, U.reshape((-1, U.shape[-1])))
+    return jax.tree_util.tree_map(lambda a: a.reshape(U.shape[:2] + a.shape[1:]), pop)
 
 
 def uniform_init_ask(key, problem, params):
@@ -241,8 +249,7 @@ def run_batch(
     def body(s, i):
         first = i == 0  # not batched, so the conds stay branches
         U, s = jax.lax.cond(first, lambda s: (U0, s), lambda s: ask(ov, s), s)
-        pop = evaluate_unit(problem, U.reshape(runs * n, -1))
-        pop = jax.tree_util.tree_map(lambda a: a.reshape((runs, n) + a.shape[1:]), pop)
+        pop = evaluate_runs(problem, U)
         s = jax.lax.cond(first, lambda s, p: init_tell(ov, key0, p), lambda s, p: tell(ov, s, p), s, pop)
         return s, (jax.vmap(history)(s) if history is not None else None)
 
