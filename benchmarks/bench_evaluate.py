@@ -107,9 +107,9 @@ def main() -> None:
         ap.error(f"--devices must be >= 1, got {args.devices}")
     if args.repeats < 1 or args.scipy_candidates < 1 or min(args.sizes) < 1:
         ap.error("--sizes, --repeats and --scipy-candidates must be >= 1")
-    from dockjax.cli import usable_cores, use_cpu_devices
+    from dockjax.cli import claim_devices
 
-    devices = use_cpu_devices(args.devices or usable_cores())  # before any JAX computation
+    devices = claim_devices(args.devices)  # before any JAX computation
     print(f"{devices} CPU device(s); evaluate shares the rows out over them (at most one per {ROWS_PER_DEVICE} rows)")
     problem = DockingProblem()
     rng = np.random.default_rng(0)

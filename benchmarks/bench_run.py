@@ -35,9 +35,9 @@ def main() -> None:
             ap.error(f"--{name} must be >= {4 if name == 'pop' else 1}, got {getattr(args, name)}")
     if args.pymoo_runs < 0:
         ap.error(f"--pymoo-runs must be >= 0, got {args.pymoo_runs}")
-    from dockjax.cli import usable_cores, use_cpu_devices
+    from dockjax.cli import claim_devices
 
-    devices = use_cpu_devices(args.devices or usable_cores())  # before any JAX computation
+    devices = claim_devices(args.devices)  # before any JAX computation
     problem = DockingProblem()
 
     t0 = time.perf_counter()

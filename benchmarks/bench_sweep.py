@@ -41,9 +41,9 @@ def main() -> None:
     args = ap.parse_args()
     if args.devices is not None and args.devices < 1:
         ap.error(f"--devices must be >= 1, got {args.devices}")
-    from dockjax.cli import usable_cores, use_cpu_devices
+    from dockjax.cli import claim_devices
 
-    devices = use_cpu_devices(args.devices or usable_cores())  # before any JAX computation
+    devices = claim_devices(args.devices)  # before any JAX computation
 
     n = args.chunk
     rng = np.random.default_rng(0)

@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-__all__ = ["enable_compilation_cache", "usable_cores", "use_cpu_devices", "DemoArgs", "demo", "demo_main", "PlanArgs", "plan_cmd", "main"]
+__all__ = ["enable_compilation_cache", "usable_cores", "use_cpu_devices", "claim_devices", "DemoArgs", "demo", "demo_main", "PlanArgs", "plan_cmd", "main"]
 
 
 def enable_compilation_cache() -> None:
@@ -56,6 +56,21 @@ def use_cpu_devices(n: int) -> int:
     except RuntimeError:  # the backend exists already
         pass
     return len(jax.devices("cpu"))
+
+
+def claim_devices(devices: int | None) -> int:
+    """A CLI's ``--devices`` (None: one per usable core): ask JAX for that many CPU devices
+    (call before the process's first JAX computation). → the count JAX has.
+
+    Raises ValueError, naming the option, for anything but an integer >= 1; notes on stderr
+    when JAX's backend already had another count (e.g. a CLI's ``main`` called twice)."""
+    if devices is not None and (isinstance(devices, bool) or not isinstance(devices, int) or devices < 1):
+        raise ValueError(f"--devices must be >= 1, got {devices!r}")
+    have = use_cpu_devices(devices or usable_cores())
+    if devices is not None and have != devices:
+        print(f"note: JAX's CPU backend was already initialised with {have} device(s); using them",
+              file=sys.stderr)
+    return have
 
 
 @dataclass(frozen=True)
@@ -157,6 +172,9 @@ class PlanArgs:
     """Polish the optimiser's front with gradient refinement (dockjax.refine) before choosing."""
     out: Path = Path("plan")
     """Output folder."""
+    devices: int | None = None
+    """CPU devices the work is shared over (the result is identical for any count). Default:
+    one per usable core."""
 
 
 def plan_cmd(args: PlanArgs) -> int:
@@ -177,8 +195,8 @@ def plan_cmd(args: PlanArgs) -> int:
     if args.pop < 4 or args.iters < 1:
         return bad(f"--pop must be >= 4 and --iters >= 1, got {args.pop} and {args.iters}")
     weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
-    use_cpu_devices(usable_cores())  # before any JAX computation (DockingProblem computes)
     try:
+        claim_devices(args.devices)  # before any JAX computation (DockingProblem computes)
         select.check_weights(weights, 2)
         extra = load_limits(args.limits) if args.limits is not None else {}
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,

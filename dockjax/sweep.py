@@ -860,15 +860,13 @@ def main(argv: list[str] | None = None) -> int:
 
     args = tyro.cli(SweepArgs, args=argv)
     created: list[Path] = []
-    if args.devices is not None and args.devices < 1:
-        print(f"error: --devices must be >= 1, got {args.devices}", file=sys.stderr)
-        return 2
-    from .cli import usable_cores, use_cpu_devices
+    from .cli import claim_devices
 
-    have = use_cpu_devices(args.devices or usable_cores())  # before any JAX computation
-    if args.devices is not None and have != args.devices:
-        print(f"note: JAX's CPU backend was already initialised with {have} device(s); using them",
-              file=sys.stderr)
+    try:
+        claim_devices(args.devices)  # before any JAX computation
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     try:
         cfg, front = make_config(args)
         created = prepare_folder(args.out, cfg)

@@ -50,6 +50,9 @@ class Args:
     """Time caps of the best-known front's ε-constraint sweep (>= 2)."""
     best_known_steps: int = 600
     """Refinement steps per time cap of the best-known front."""
+    devices: int | None = None
+    """CPU devices the runs are shared over (results are identical for any count). Default:
+    one per usable core."""
 
 
 def main(args: Args) -> int:
@@ -70,6 +73,8 @@ def main(args: Args) -> int:
         errors.append(f"--best-known-steps must be >= 1, got {args.best_known_steps}")
     if args.refine_steps < 0:
         errors.append(f"--refine-steps must be >= 0, got {args.refine_steps}")
+    if args.devices is not None and args.devices < 1:
+        errors.append(f"--devices must be >= 1, got {args.devices}")
     if not errors:
         created = not args.out.exists()
         try:
@@ -84,9 +89,9 @@ def main(args: Args) -> int:
     if errors:
         print("error: " + "; ".join(errors), file=sys.stderr)
         return 2
-    from dockjax.cli import enable_compilation_cache, usable_cores, use_cpu_devices
+    from dockjax.cli import claim_devices, enable_compilation_cache
 
-    use_cpu_devices(usable_cores())  # before any JAX computation: each core runs its share of the runs
+    claim_devices(args.devices)  # before any JAX computation: each device runs its share of the runs
     from dockjax.study import (best_known_cached, make_problem, refine_rows, run_study, study_right_arm,
                                summary_table, write_study)
 

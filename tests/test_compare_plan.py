@@ -18,6 +18,11 @@ from tests import reference as R
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = Path(sys.executable).parent / "dockjax"
 ENV = {**os.environ, "DOCKJAX_CACHE": str(ROOT / ".pytest-jax-cache")}
+# The CLIs run on one CPU device here (their default is one per core), as the test processes
+# do: the compiled programs are then those of the in-process tests with the same shapes
+# (e.g. tests/test_refine.py's IMOCS run), shared through the persistent cache. Two devices
+# give identical results (tests/test_xla_settings.py).
+ONE_DEVICE = ["--devices", "1"]
 
 
 def _run(cmd, **kw):
@@ -34,7 +39,7 @@ def compare_out(tmp_path_factory):
     r = _run([sys.executable, str(ROOT / "experiments" / "compare.py"), "--seeds", "2", "--pop", "8",
               "--iters", "3", "--presets", "paper", "--algorithms", "imocs", "nsga2", "mocs", "mopso",
               "--refine-steps", "20", "--best-known-points", "16", "--best-known-steps", "150",
-              "--out", str(out)])
+              *ONE_DEVICE, "--out", str(out)])
     assert r.returncode == 0, r.stderr[-2000:]
     return out / "paper", r.stdout
 
@@ -118,12 +123,14 @@ def test_compare_end_to_end(compare_out):
     _check_chosen_trajectories_are_feasible_on_the_dense_check(folder)
 
 
-def test_compare_rejects_bad_input_with_exit_2(tmp_path):
-    r = _run([sys.executable, str(ROOT / "experiments" / "compare.py"), "--seeds", "0", "--out", str(tmp_path / "x")])
-    assert r.returncode == 2 and "--seeds" in r.stderr
+@pytest.mark.parametrize("args, needle", [(["--seeds", "0"], "--seeds"), (["--devices", "0"], "--devices")])
+def test_compare_rejects_bad_input_with_exit_2(tmp_path, args, needle):
+    r = _run([sys.executable, str(ROOT / "experiments" / "compare.py"), *args, "--out", str(tmp_path / "x")])
+    assert r.returncode == 2 and needle in r.stderr
+    assert not (tmp_path / "x").exists()
 
 
-PLAN_ARGS = ["--pop", "16", "--iters", "8", "--rate", "200"]
+PLAN_ARGS = ["--pop", "16", "--iters", "8", "--rate", "200", *ONE_DEVICE]
 NO_REFINE = ["--no-refine"]
 
 
@@ -187,6 +194,7 @@ def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path)
         (["--rate", "abc"], "rate"),
         (["--limits", "/nonexistent/limits.toml"], "limits"),
         (["--weights", "-1", "1"], "weights"),
+        (["--devices", "0"], "devices"),
     ],
 )
 def test_plan_bad_input_exits_2_and_writes_nothing(tmp_path, args, needle):
