@@ -173,8 +173,8 @@ class PlanArgs:
     out: Path = Path("plan")
     """Output folder."""
     devices: int | None = None
-    """CPU devices the work is shared over (the result is identical for any count). Default:
-    one per usable core."""
+    """CPU devices the work is shared over (the run is the same for any count, the
+    refinement's scores equal to rounding). Default: one per usable core."""
 
 
 def plan_cmd(args: PlanArgs) -> int:

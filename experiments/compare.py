@@ -51,8 +51,8 @@ class Args:
     best_known_steps: int = 600
     """Refinement steps per time cap of the best-known front."""
     devices: int | None = None
-    """CPU devices the runs are shared over (results are identical for any count). Default:
-    one per usable core."""
+    """CPU devices the work is shared over (the runs are bit-identical for any count, the
+    refinement's scores equal to rounding). Default: one per usable core."""
 
 
 def main(args: Args) -> int:
