@@ -57,7 +57,7 @@ def scipy_evaluate(problem: DockingProblem, x: np.ndarray) -> tuple[np.ndarray, 
         r3 = -(p[k][:, 0] + d2 * 0.5 * (ep.imag - em.imag))  # cos a sin b
         return np.stack([r1, r2, r3], 1)
 
-    xi, w = np.polynomial.legendre.leggauss(8)
+    xi, w = np.polynomial.legendre.leggauss(problem.jerk_nodes)
     ts = np.concatenate([0.5 * (u[5 + k] + u[6 + k]) + 0.5 * h[k] * xi for k in range(6)])
     ws = np.concatenate([0.5 * h[k] * w for k in range(6)])
     p3 = derivs[3](ts)

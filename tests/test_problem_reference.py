@@ -190,6 +190,33 @@ def test_evaluate_without_caller_x64_returns_float64_and_leaves_flag():
     np.testing.assert_allclose(F[0], [T, jerk], rtol=F_RTOL)
 
 
+def test_jerk_nodes_follow_the_attitude_range_and_reach_1e9():
+    """SPEC §5: the right arm's jerk integral to 1e-9 relative. The Gauss–Legendre nodes per
+    span come from the box's range of pitch and yaw: 8 for the paper's box; 12 for a box of
+    2.6° (tests/test_properties.py), where hypothesis found a candidate — a 0.5 s span
+    sweeping the whole pitch range — on which 8 nodes miss 1e-9; 24 beyond 8°."""
+    assert DockingProblem().jerk_nodes == 8
+    start, goal = (700.0, 20.0, -1300.0, -1.0, 1.5, 175.0), (760.0, -10.0, -1450.0, 1.2, -1.0, 183.0)
+    kw = dict(start=start, goal=goal, arm_distance=2800.0, interval_bounds=(0.1, 100.0),
+              travel=(600.0, 150.0, 150.0, 15.0))
+    p = DockingProblem(**kw)
+    assert p.jerk_nodes == 12 and p.with_right_arm("exact").jerk_nodes == 12
+    lo, hi = p.lower[6:], p.upper[6:]
+    fractions = np.zeros(30)
+    fractions[2:4] = (0.75, 1.0)
+    x = np.concatenate([[2.0, 1.0, 0.5, 9.0, 1.0, 2.0], lo + fractions * (hi - lo)])
+    _, jerk = R.reference_objectives(x, start, goal, 2800.0, nodes=40)
+    err = lambda q: abs(q.evaluate(np.vstack([x, x]))[0][0, 1] - jerk) / jerk  # noqa: E731
+    assert err(p) <= 1e-12
+    assert err(DockingProblem(**kw, jerk_nodes=8)) > 1e-9
+    turn = DockingProblem(start=(775.0, -35.0, -1315.0, 10.0, -10.0, 190.0), goal=DEFAULT["goal"],
+                          travel=(3000.0, 3000.0, 3000.0, 15.0))
+    assert turn.jerk_nodes == 24
+    for bad in (2, 65, 2.5, True):
+        with pytest.raises(ValueError, match="jerk_nodes"):
+            DockingProblem(jerk_nodes=bad)
+
+
 def test_defaults_are_the_paper_and_spec_values():
     p = DockingProblem()
     assert (p.n_var, p.n_obj, p.n_con) == (36, 2, 24)
