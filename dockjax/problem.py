@@ -79,6 +79,15 @@ def _vector(name: str, value, lengths: Sequence[int], positive: bool = False) ->
     return arr
 
 
+def _control_box(start: np.ndarray, goal: np.ndarray, margin: float) -> np.ndarray:
+    """The box of the free control points (SPEC §3): (2, 6) lower and upper pose, the
+    start-to-goal range widened by ``margin`` × the move, or by the zero-move margins
+    where a coordinate does not move."""
+    delta = goal - start
+    m = np.where(delta == 0, np.asarray(config.ZERO_MOVE_MARGIN), margin * np.abs(delta))
+    return np.stack([np.minimum(start, goal) - m, np.maximum(start, goal) + m])
+
+
 def _per_joint(name: str, value) -> np.ndarray:
     arr = _vector(name, value, (4, 8), positive=True)
     return np.tile(arr, 2) if arr.shape[0] == 4 else arr
@@ -171,11 +180,7 @@ class DockingProblem:
                         f"{label} value {q:.6g} of joint {name} is outside its travel "
                         f"{home_a[j]:.6g} ± {limits[j, 0]:.6g} about home"
                     )
-        delta = goal_a - start_a
-        zero_margin = np.asarray(config.ZERO_MOVE_MARGIN)
-        m = np.where(delta == 0, zero_margin, mg * np.abs(delta))
-        box_lo = np.minimum(start_a, goal_a) - m
-        box_hi = np.maximum(start_a, goal_a) + m
+        box_lo, box_hi = _control_box(start_a, goal_a, mg)
         h_lo, h_hi = np.full(6, lo), np.full(6, hi)
         if reduced:
             lower, upper = h_lo, h_hi
@@ -224,11 +229,9 @@ class DockingProblem:
         return obj
 
     def _pose_box(self) -> np.ndarray:
-        """The control points' box (SPEC §3), (2, 6) lower and upper pose; also in the
-        reduced setting, so that both settings take the same paths."""
-        delta = self.goal - self.start
-        m = np.where(delta == 0, np.asarray(config.ZERO_MOVE_MARGIN), self.margin * np.abs(delta))
-        return np.stack([np.minimum(self.start, self.goal) - m, np.maximum(self.start, self.goal) + m])
+        """The control points' box (:func:`_control_box`), also in the reduced setting, so
+        that both settings take the same paths."""
+        return _control_box(self.start, self.goal, self.margin)
 
     def _bound_overstatement(self) -> float:
         """Worst-case overstatement (in units of the limit) of the ``"bound"`` treatment of
