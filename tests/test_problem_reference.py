@@ -194,7 +194,8 @@ def test_jerk_nodes_follow_the_attitude_range_and_reach_1e9():
     """SPEC §5: the right arm's jerk integral to 1e-9 relative. The Gauss–Legendre nodes per
     span come from the box's range of pitch and yaw: 8 for the paper's box; 12 for a box of
     2.6° (tests/test_properties.py), where hypothesis found a candidate — a 0.5 s span
-    sweeping the whole pitch range — on which 8 nodes miss 1e-9; 24 beyond 8°."""
+    sweeping the whole pitch range — on which 8 nodes miss 1e-9; 24 beyond 8°. No kernel
+    is compiled here."""
     assert DockingProblem().jerk_nodes == 8
     start, goal = (700.0, 20.0, -1300.0, -1.0, 1.5, 175.0), (760.0, -10.0, -1450.0, 1.2, -1.0, 183.0)
     kw = dict(start=start, goal=goal, arm_distance=2800.0, interval_bounds=(0.1, 100.0),
@@ -206,12 +207,10 @@ def test_jerk_nodes_follow_the_attitude_range_and_reach_1e9():
     fractions[2:4] = (0.75, 1.0)
     x = np.concatenate([[2.0, 1.0, 0.5, 9.0, 1.0, 2.0], lo + fractions * (hi - lo)])
     _, jerk = R.reference_objectives(x, start, goal, 2800.0, nodes=40)
-    # 8 nodes are not enough here (the reference's own quadrature shows it)...
-    _, jerk8 = R.reference_objectives(x, start, goal, 2800.0, nodes=8)
-    assert abs(jerk8 - jerk) > 1e-9 * jerk
-    # ...and the kernel, with the box's 12, is far within 1e-9
-    F, _ = p.evaluate(np.vstack([x, x]))
-    assert abs(F[0, 1] - jerk) <= 1e-12 * jerk
+    # 8 nodes are not enough here, 12 are (the reference's own quadrature shows it; the
+    # kernel meets 1e-9 on this candidate in tests/test_properties.py's pinned example)
+    err = lambda nodes: abs(R.reference_objectives(x, start, goal, 2800.0, nodes=nodes)[1] - jerk) / jerk  # noqa: E731
+    assert err(8) > 1e-9 and err(12) <= 1e-12
     turn = DockingProblem(start=(775.0, -35.0, -1315.0, 10.0, -10.0, 190.0), goal=DEFAULT["goal"],
                           travel=(3000.0, 3000.0, 3000.0, 15.0))
     assert turn.jerk_nodes == 24
