@@ -103,13 +103,14 @@ def main() -> None:
     ap.add_argument("--devices", type=int, default=None,
                     help="CPU devices the rows are shared out over (default: one per usable core)")
     args = ap.parse_args()
-    if args.devices is not None and args.devices < 1:
-        ap.error(f"--devices must be >= 1, got {args.devices}")
     if args.repeats < 1 or args.scipy_candidates < 1 or min(args.sizes) < 1:
         ap.error("--sizes, --repeats and --scipy-candidates must be >= 1")
     from dockjax.cli import claim_devices
 
-    devices = claim_devices(args.devices)  # before any JAX computation
+    try:
+        devices = claim_devices(args.devices)  # before any JAX computation
+    except ValueError as exc:
+        ap.error(str(exc))
     print(f"{devices} CPU device(s); evaluate shares the rows out over them (at most one per {ROWS_PER_DEVICE} rows)")
     problem = DockingProblem()
     rng = np.random.default_rng(0)

@@ -28,8 +28,6 @@ def main() -> None:
     ap.add_argument("--pymoo-runs", type=int, default=2)
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
     args = ap.parse_args()
-    if args.devices is not None and args.devices < 1:
-        ap.error(f"--devices must be >= 1, got {args.devices}")
     for name in ("pop", "iters", "runs"):
         if getattr(args, name) < (4 if name == "pop" else 1):
             ap.error(f"--{name} must be >= {4 if name == 'pop' else 1}, got {getattr(args, name)}")
@@ -37,7 +35,10 @@ def main() -> None:
         ap.error(f"--pymoo-runs must be >= 0, got {args.pymoo_runs}")
     from dockjax.cli import claim_devices
 
-    devices = claim_devices(args.devices)  # before any JAX computation
+    try:
+        devices = claim_devices(args.devices)  # before any JAX computation
+    except ValueError as exc:
+        ap.error(str(exc))
     problem = DockingProblem()
 
     t0 = time.perf_counter()

@@ -39,11 +39,12 @@ def main() -> None:
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved timed rounds")
     args = ap.parse_args()
-    if args.devices is not None and args.devices < 1:
-        ap.error(f"--devices must be >= 1, got {args.devices}")
     from dockjax.cli import claim_devices
 
-    devices = claim_devices(args.devices)  # before any JAX computation
+    try:
+        devices = claim_devices(args.devices)  # before any JAX computation
+    except ValueError as exc:
+        ap.error(str(exc))
 
     n = args.chunk
     rng = np.random.default_rng(0)
