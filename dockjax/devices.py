@@ -1,9 +1,13 @@
 """Spreading independent work — optimisation runs, candidates to score — over JAX's devices.
 
-Every device gets its share through ``jax.shard_map`` and runs its own program, with no
-communication: nothing here needs a collective, and XLA:CPU's in-process collectives inside
-loops are fragile (automatic partitioning of a vmapped while loop turns its batched
-condition into a cross-device all-reduce; a trial deadlocked in the rendezvous).
+Every device gets its share through ``jax.shard_map`` and runs its own program
+(:func:`sharded`), with no communication. The one exception is a batch with fewer runs than
+devices (one run, as ``dockjax plan`` makes): then every device runs the whole batch
+(:func:`replicated`) except its dear part, the scoring of the candidates, whose rows each
+device computes for its share and gathers from the others (:func:`share_rows`, one
+explicit ``all_gather`` per evaluation). XLA:CPU's *automatic* partitioning is avoided: it
+turned a vmapped while loop's batched condition into a cross-device all-reduce, and a
+trial deadlocked in the rendezvous.
 
 A CPU process has one device unless it asks for more *before* its first JAX computation:
 ``jax.config.update("jax_num_cpu_devices", n)`` (:func:`dockjax.cli.use_cpu_devices`).
@@ -18,7 +22,7 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-__all__ = ["AXIS", "SHARDED", "SAME", "choose", "mesh", "put", "sharded"]
+__all__ = ["AXIS", "SHARDED", "SAME", "choose", "mesh", "put", "sharded", "replicated", "share_rows"]
 
 AXIS = "items"
 """The one mesh axis: runs of a batch, or rows of a population."""
@@ -71,3 +75,37 @@ def sharded(fn: Callable, static: tuple, where: Mesh | None, specs: tuple, *args
     if where is None:
         return fn(*static, *args)
     return _sharded(fn, static, where, specs, *args)
+
+
+@partial(jax.jit, static_argnames=("fn", "static", "where"))
+def _replicated(fn: Callable, static: tuple, where: Mesh, *args):
+    body = partial(fn, *static)
+    return jax.shard_map(body, mesh=where, in_specs=SAME, out_specs=SAME, check_vma=False)(*args)
+
+
+def replicated(fn: Callable, static: tuple, where: Mesh | None, *args):
+    """``fn(*static, *args)`` computed whole by every device of ``where``, for a program
+    that shares out its own dear part with :func:`share_rows` (every input and output is
+    the whole value on every device; the devices compute the same outputs, so any copy is
+    the result). Hashable ``fn`` and ``static`` as for :func:`sharded`; ``where=None``
+    calls ``fn`` directly."""
+    if where is None:
+        return fn(*static, *args)
+    return _replicated(fn, static, where, *args)
+
+
+def share_rows(fn: Callable, parts: int, X, axis: int = 0):
+    """Inside :func:`replicated` over ``parts`` devices: ``fn(X)`` with each device
+    computing ``fn`` on its share of the rows of X along ``axis`` (the last share padded
+    with copies of the last row) and every device getting all results, gathered in row
+    order along the same axis. ``fn`` must be row-wise — a row's result may not depend on
+    the other rows — and then the result equals ``fn(X)`` on one device."""
+    n = X.shape[axis]
+    m = -(-n // parts)
+    if m * parts != n:
+        last = jax.lax.slice_in_dim(X, n - 1, n, axis=axis)
+        X = jax.numpy.concatenate([X] + [last] * (m * parts - n), axis=axis)
+    mine = jax.lax.dynamic_slice_in_dim(X, jax.lax.axis_index(AXIS) * m, m, axis=axis)
+    gather = lambda a: jax.lax.slice_in_dim(  # noqa: E731
+        jax.lax.all_gather(a, AXIS, axis=axis, tiled=True), 0, n, axis=axis)
+    return jax.tree_util.tree_map(gather, fn(mine))

@@ -31,6 +31,12 @@ for driver in ("scan", "host"):
         out[f"{driver}_{label}_devices"] = r.extra["devices"]
         for field in ("U", "F", "G", "cv", "front", "history"):
             out[f"{driver}_{label}_{field}"] = getattr(r, field)
+one = dict(seeds=[7], pop_size=11, n_iter=4, hv_ref=np.array([1.2, 6.0]), rho=0.3)
+for label, d in (("one", 1), ("two", None)):
+    r = optimize("imocs", ZDT1(n_var=5), devices=d, **one)
+    out[f"single_{label}_layout"] = [r.extra["devices"], r.extra["share_rows"]]
+    for field in ("U", "F", "front", "history"):
+        out[f"single_{label}_{field}"] = getattr(r, field)
 from dockjax import DockingProblem
 problem = DockingProblem()
 X = np.random.default_rng(1).uniform(problem.lower, problem.upper, (600, problem.n_var))
@@ -84,6 +90,17 @@ def test_runs_sharded_over_two_devices_equal_one_device(other_process, driver):
     for field in ("U", "F", "G", "cv", "front", "history"):
         np.testing.assert_array_equal(o[f"two_{field}"], o[f"one_{field}"], err_msg=field)
     assert o["two_F"].shape[0] == 3 and not np.array_equal(o["two_U"][0], o["two_U"][2])
+
+
+def test_one_run_shares_its_rows_over_two_devices(other_process):
+    """One run and two devices: every device runs the whole run and scores its share of
+    each evaluation's rows (11 nests: 6 and 5, padded), gathering the rest from the other
+    (``share_rows``). The result must be bit-identical to the single-device run's."""
+    o = other_process
+    assert o["single_one_layout"].tolist() == [1, 0] and o["single_two_layout"].tolist() == [2, 1]
+    for field in ("U", "F", "front", "history"):
+        np.testing.assert_array_equal(o[f"single_two_{field}"], o[f"single_one_{field}"], err_msg=field)
+    assert o["single_two_F"].shape == (1, 11, 2) and o["single_two_history"].shape == (1, 4)
 
 
 def test_evaluate_shared_over_two_devices_equals_one_device(other_process):

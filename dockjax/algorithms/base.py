@@ -219,6 +219,7 @@ def run_batch(
     *,
     overrides: dict | None = None,
     history: Callable | None = None,
+    evaluate: Callable | None = None,
 ):
     """A batch of runs (``keys`` (runs,)) of :func:`run` in one ``lax.scan`` (traceable).
 
@@ -230,9 +231,13 @@ def run_batch(
     (it is the dear part to compile): the scan runs ``n_iter + 1`` times, and each pass
     asks for candidates (the initial population in pass 0, the algorithm's ``ask`` after),
     scores them, and hands the scores back (``init_tell`` in pass 0, ``tell`` after).
-    Returns ``(state, trace)`` with the runs on the leading axis of every leaf.
+    ``evaluate(problem, U) -> Population``, for U (runs, n, d), replaces
+    :func:`evaluate_runs` (e.g. with one whose rows are shared out over devices:
+    :func:`dockjax.devices.share_rows`). Returns ``(state, trace)`` with the runs on the
+    leading axis of every leaf.
     """
     ov = dict(overrides or {})
+    evaluate = evaluate_runs if evaluate is None else evaluate
 
     def per_run(f):
         return jax.vmap(lambda o, *a: f(*a, replace(params, **o) if o else params))
@@ -249,7 +254,7 @@ def run_batch(
     def body(s, i):
         first = i == 0  # not batched, so the conds stay branches
         U, s = jax.lax.cond(first, lambda s: (U0, s), lambda s: ask(ov, s), s)
-        pop = evaluate_runs(problem, U)
+        pop = evaluate(problem, U)
         s = jax.lax.cond(first, lambda s, p: init_tell(ov, key0, p), lambda s, p: tell(ov, s, p), s, pop)
         return s, (jax.vmap(history)(s) if history is not None else None)
 
