@@ -1,6 +1,6 @@
 """One IMOCS run, 100 vmapped runs, and pymoo's NSGA-II on the same kernel.
 
-    python benchmarks/bench_run.py [--pop 150] [--iters 100] [--runs 100] [--devices N] [--pymoo-runs 2]
+    python benchmarks/bench_run.py [--pop 150] [--iters 100] [--runs 100] [--devices N] [--pymoo-runs 5]
 
 Default docking problem, population 150, 100 iterations (15,150 evaluations per run).
 Prints compile and run time of one IMOCS run and of ``--runs`` runs vmapped in one call,
@@ -26,7 +26,8 @@ def main() -> None:
     ap.add_argument("--pop", type=int, default=150)
     ap.add_argument("--iters", type=int, default=100)
     ap.add_argument("--runs", type=int, default=100)
-    ap.add_argument("--pymoo-runs", type=int, default=2)
+    ap.add_argument("--pymoo-runs", type=int, default=5,
+                    help="pymoo runs, each interleaved with a timed IMOCS run (0: skip pymoo)")
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
     args = ap.parse_args()
     for name in ("pop", "iters", "runs"):
@@ -41,34 +42,29 @@ def main() -> None:
     except ValueError as exc:
         ap.error(str(exc))
     problem = DockingProblem()
+    run = lambda seeds, **kw: optimize("imocs", problem, seeds=seeds, pop_size=args.pop, n_iter=args.iters, **kw)  # noqa: E731
 
     t0 = time.perf_counter()
-    optimize("imocs", problem, seeds=[0], pop_size=args.pop, n_iter=args.iters)
+    run([0])
     first = time.perf_counter() - t0
-    # medians over 5 seeds (this host is shared and noisy)
-    one = float(np.median([optimize("imocs", problem, seeds=[s], pop_size=args.pop, n_iter=args.iters).seconds
-                           for s in range(1, 6)]))
-    print(f"IMOCS, 1 run on {devices} device(s): compile+run {first:.1f} s, run {one:.2f} s")
+    print(f"IMOCS, 1 run on {devices} device(s): compile+run {first:.1f} s")
     if devices > 1:
-        optimize("imocs", problem, seeds=[0], pop_size=args.pop, n_iter=args.iters, devices=1)
-        solo = float(np.median([optimize("imocs", problem, seeds=[s], pop_size=args.pop, n_iter=args.iters,
-                                         devices=1).seconds for s in range(1, 6)]))
-        print(f"IMOCS, 1 run on 1 device: run {solo:.2f} s (rows shared over {devices} devices: {one / solo:.2f}x the time)")
+        run([0], devices=1)
 
     t0 = time.perf_counter()
-    optimize("imocs", problem, seeds=range(args.runs), pop_size=args.pop, n_iter=args.iters)
+    run(list(range(args.runs)))
     first_b = time.perf_counter() - t0
-    batch = optimize("imocs", problem, seeds=range(args.runs, 2 * args.runs), pop_size=args.pop, n_iter=args.iters).seconds
-    print(f"IMOCS, {args.runs} runs vmapped on {min(devices, args.runs)} device(s): compile+run {first_b:.1f} s, run {batch:.1f} s "
-          f"({args.runs / batch:.2f} runs/s)")
+    batch = run(list(range(args.runs, 2 * args.runs))).seconds
+    print(f"IMOCS, {args.runs} runs vmapped on {min(devices, args.runs)} device(s): compile+run {first_b:.1f} s, "
+          f"run {batch:.1f} s ({args.runs / batch:.2f} runs/s)")
 
     # evaluation share: the kernel alone on what a run scores — its own candidates (the
-    # final population of the timed run; random candidates are dearer: more of them
-    # overflow the screen) — called iters + 1 times inside one compiled loop, as in the
-    # run (no per-call dispatch); each call depends on the last, so XLA cannot hoist it
+    # final population of a run; random candidates are dearer: more of them overflow the
+    # screen) — called iters + 1 times inside one compiled loop, as in the run (no per-call
+    # dispatch); each call depends on the last, so XLA cannot hoist it
     import jax
 
-    X = optimize("imocs", problem, seeds=[1], pop_size=args.pop, n_iter=args.iters).X[0]
+    X = run([1], devices=1).X[0]
     with jax.enable_x64(True):
         def calls(X0):
             def body(_, Xi):
@@ -79,34 +75,56 @@ def main() -> None:
         loop = jax.jit(calls)
         Xj = jax.numpy.asarray(X)
         jax.block_until_ready(loop(Xj))
-        runs = []
+        times = []
         for _ in range(5):
             t0 = time.perf_counter()
             jax.block_until_ready(loop(Xj))
-            runs.append(time.perf_counter() - t0)
-    eval_s = float(np.median(runs))
-    print(f"evaluation alone (kernel on a run's {args.pop} candidates x {args.iters + 1}, one compiled loop): "
-          f"{eval_s:.2f} s of the {one:.2f} s run ({100 * eval_s / one:.0f} %); the rest is ranking, "
-          f"survival and variation")
-    if args.pymoo_runs < 1:
+            times.append(time.perf_counter() - t0)
+    eval_s = float(np.median(times))
+
+    if args.pymoo_runs:
+        from pymoo.algorithms.moo.nsga2 import NSGA2
+        from pymoo.optimize import minimize
+
+        from dockjax.interop import as_pymoo_problem
+
+        pp = as_pymoo_problem(problem)
+        problem.evaluate(X)  # compile pymoo's batch shape first: time runs, not compiles
+
+        def pymoo_run(seed):
+            t0 = time.perf_counter()
+            minimize(pp, NSGA2(pop_size=args.pop), ("n_gen", args.iters + 1), seed=seed)
+            return time.perf_counter() - t0
+
+    # one run: rounds of (IMOCS on the default devices, on one device, pymoo), interleaved
+    # so that the host's slow and fast spells fall on all of them; medians
+    rounds = max(args.pymoo_runs, 5)
+    ones, solos, pys = [], [], []
+    for r in range(rounds):
+        ones.append(run([r + 1]).seconds)
+        if devices > 1:
+            solos.append(run([r + 1], devices=1).seconds)
+        if args.pymoo_runs and r < args.pymoo_runs:
+            pys.append(pymoo_run(r))
+    one = float(np.median(ones))
+    solo = float(np.median(solos)) if solos else one
+    print(f"IMOCS, 1 run on {devices} device(s): run {one:.3f} s (median of {rounds})")
+    if devices > 1:
+        ratios = np.array(ones) / np.array(solos)
+        print(f"IMOCS, 1 run on 1 device: run {solo:.3f} s; rows shared over {devices} devices: "
+              f"{np.median(ratios):.2f}x the time (median of {rounds} interleaved pairs)")
+    print(f"evaluation alone (kernel on a run's {args.pop} candidates x {args.iters + 1}, one compiled loop, "
+          f"one device): {eval_s:.3f} s of the {solo:.3f} s one-device run ({100 * eval_s / solo:.0f} %); "
+          f"the rest is ranking, survival and variation")
+    if not pys:
         print("pymoo skipped (--pymoo-runs 0)")
         return
-
-    from pymoo.algorithms.moo.nsga2 import NSGA2
-    from pymoo.optimize import minimize
-
-    from dockjax.interop import as_pymoo_problem
-
-    pp = as_pymoo_problem(problem)
-    problem.evaluate(X)  # compile pymoo's batch shape first: time runs, not compiles
-    times = []
-    for s in range(args.pymoo_runs):
-        t0 = time.perf_counter()
-        minimize(pp, NSGA2(pop_size=args.pop), ("n_gen", args.iters + 1), seed=s)
-        times.append(time.perf_counter() - t0)
-    py = float(np.median(times))
-    print(f"pymoo NSGA-II on the dockjax kernel: {py:.2f} s per run (median of {args.pymoo_runs})")
-    print(f"ratio, one run: {py / one:.1f}x (target >= 10x)")
+    py = float(np.median(pys))
+    pairs = np.array(pys) / np.array(ones[: len(pys)])
+    print(f"pymoo NSGA-II on the dockjax kernel: {py:.2f} s per run (median of {len(pys)}, "
+          f"{', '.join(f'{t:.2f}' for t in pys)})")
+    print(f"ratio, one run: {py / one:.1f}x (median of the {len(pys)} interleaved pairs: {np.median(pairs):.1f}x; "
+          f"target >= 10x)")
     print(f"ratio, throughput of {args.runs} vmapped runs vs pymoo runs one after another: "
           f"{py * args.runs / batch:.1f}x (target >= 30x)")
 
