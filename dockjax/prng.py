@@ -11,9 +11,10 @@ dimensions, in one compiled loop, took 56 ms with JAX's keys and 32 ms with thes
 :data:`IMPL` is the same generator — same seeding, splitting, folding and bits, so every
 draw is identical to JAX's default keys' (a test compares them) — with the hash written out
 as its 20 rounds, which XLA fuses into one kernel per draw (its result materialised, see
-:func:`threefry2x32`). Keys made with :func:`key` carry it; ``jax.random.uniform``, ``normal``, ``split``, … then use it
-through JAX's public extension point (:func:`jax.extend.random.define_prng_impl`). Nothing
-global changes: other keys keep JAX's own lowering.
+:func:`threefry2x32`). Keys made with :func:`key` carry it; ``jax.random.uniform``,
+``normal``, ``split``, … then use it through JAX's public extension point
+(:func:`jax.extend.random.define_prng_impl`). Nothing global changes: other keys keep
+JAX's own lowering.
 
 The straight-line form follows JAX's ``threefry_partitionable`` layout (the default since
 JAX 0.5): the counter of element i of a draw is i itself, as a 64-bit number split in two

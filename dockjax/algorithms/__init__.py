@@ -144,7 +144,7 @@ def optimize(
     the scan driver and fewer runs than devices (one run, say), every device runs the whole
     batch and computes its share of the rows of each evaluation instead
     (:func:`dockjax.devices.share_rows`): one run of IMOCS on the default problem, 150
-    nests, on two devices takes ~0.8× the time on one (README, Performance). A CPU
+    nests, on two devices takes about 0.85× the time on one (README, Performance). A CPU
     process has one device unless it asks for more *before* its first JAX computation,
     e.g. ``jax.config.update("jax_num_cpu_devices", 2)``, as the CLIs do
     (:func:`dockjax.cli.use_cpu_devices`): on a 2-core CPU two devices run a chunk of runs
