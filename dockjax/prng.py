@@ -18,8 +18,9 @@ JAX's own lowering.
 
 The straight-line form follows JAX's ``threefry_partitionable`` layout (the default since
 JAX 0.5): the counter of element i of a draw is i itself, as a 64-bit number split in two
-32-bit words. If a process switches that flag off, :data:`IMPL` hands every call to JAX's
-own implementation, so draws still equal the default keys'.
+32-bit words. If a process switches that flag off, or a single draw holds 2**32 numbers
+or more, :data:`IMPL` hands the call to JAX's own implementation, so draws still equal the
+default keys'.
 """
 
 from __future__ import annotations
@@ -62,11 +63,9 @@ def threefry2x32(k1, k2, x1, x2):
 
 
 def _counters(shape):
-    """The partitionable counters of a draw of ``shape``: element i (row-major) gets the
-    64-bit number i, as (high, low) uint32 words."""
-    size = math.prod(shape)
-    if size >= 2**32:
-        raise NotImplementedError(f"draws of 2**32 or more numbers at once, got shape {shape}")
+    """The partitionable counters of a draw of ``shape`` (fewer than 2**32 numbers, see
+    :func:`_straight`): element i (row-major) gets the 64-bit number i, as (high, low)
+    uint32 words; the high word is 0."""
     lo = jnp.zeros(shape, jnp.uint32)
     stride = 1
     for axis in range(len(shape) - 1, -1, -1):
@@ -75,12 +74,15 @@ def _counters(shape):
     return jnp.zeros(shape, jnp.uint32), lo
 
 
-def _partitionable() -> bool:
-    return bool(jax.config.jax_threefry_partitionable)
+def _straight(shape) -> bool:
+    """Whether a draw of ``shape`` takes the straight-line hash: JAX's partitionable layout
+    is on, and the counters fit in their low words. Otherwise JAX's implementation draws
+    (the same numbers)."""
+    return bool(jax.config.jax_threefry_partitionable) and math.prod(shape) < 2**32
 
 
 def _random_bits(key_data, bit_width, shape):
-    if not _partitionable():
+    if not _straight(shape):
         return threefry_prng_impl.random_bits(key_data, bit_width, shape)
     if bit_width not in (8, 16, 32, 64):
         raise TypeError(f"random bits must be 8, 16, 32 or 64 wide, got {bit_width}")
@@ -92,14 +94,14 @@ def _random_bits(key_data, bit_width, shape):
 
 
 def _split(key_data, shape):
-    if not _partitionable():
+    if not _straight(shape):
         return threefry_prng_impl.split(key_data, shape)
     b1, b2 = threefry2x32(key_data[0], key_data[1], *_counters(tuple(shape)))
     return jnp.stack([b1, b2], axis=-1)
 
 
 def _fold_in(key_data, data):
-    if not _partitionable():
+    if not _straight(()):
         return threefry_prng_impl.fold_in(key_data, data)
     # JAX hashes the seed words of ``data`` as one counter pair
     seed = threefry_prng_impl.seed(jnp.asarray(data, jnp.uint32))

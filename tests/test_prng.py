@@ -88,3 +88,10 @@ def test_partitionable_layout_or_jax_own():
                                           err_msg=name)
     finally:
         jax.config.update("jax_threefry_partitionable", old)
+
+
+def test_draws_of_2_32_numbers_or_more_go_to_jax():
+    """A draw of 2**32 numbers needs the counters' high words: JAX's implementation takes it
+    (traced only, nothing is allocated)."""
+    out = jax.eval_shape(lambda k: jax.random.bits(k, (2**16, 2**16)), prng.key(0))
+    assert out.shape == (2**16, 2**16) and out.dtype == jnp.uint32
