@@ -261,12 +261,23 @@ def _run_batch_scan(algo, n_iter, parts, keys, problem, params, overrides, hv_re
     """The scan driver; ``parts > 1``: inside :func:`dockjax.devices.replicated` over that
     many devices, each scoring its share of the rows."""
     history = None if hv_ref is None else (lambda s: _history(algo, s, hv_ref))
-    evaluate = None if parts == 1 else (
-        lambda problem, U: dev.share_rows(partial(base.evaluate_runs, problem), parts, U, axis=1))
+    evaluate = None if parts == 1 else partial(_shared_evaluate, parts)
     state, trace = base.run_batch(algo, keys, problem, params, n_iter, overrides=overrides, history=history,
                                   evaluate=evaluate)
     pop = jax.vmap(algo.final_population)(state)
     return pop, jax.vmap(_front_mask)(pop.F, pop.cv), trace
+
+
+def _shared_evaluate(parts, problem, U):
+    """:func:`base.evaluate_runs` with each of ``parts`` devices scoring its share of the
+    rows (:func:`dockjax.devices.share_rows`). Every device has U already: only the scores
+    are gathered."""
+    def scores(u):
+        pop = base.evaluate_runs(problem, u)
+        return pop.F, pop.G, pop.cv
+
+    F, G, cv = dev.share_rows(scores, parts, U, axis=1)
+    return base.Population(U=U, F=F, G=G, cv=cv)
 
 
 def _with(params, ov):
