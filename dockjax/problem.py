@@ -485,26 +485,32 @@ def _maxima_screened(problem: DockingProblem, c, h, ref):
     est = top + extra
     far = (est < (1.0 - SCREEN_BAND) * lim) | (est > (1.0 + SCREEN_BAND) * lim)
     tol = jnp.where(far, jnp.maximum(SCREEN_SLACK * lim - 2.0 * extra, 0.0), 0.0)
-    fail = (up > top + tol).reshape(-1, 3)  # (48 spans × joints, 3)
+    # computed once: XLA would otherwise recompute the test in each of its consumers
+    fail = materialize((up > top + tol).reshape(-1, 3))  # (48 spans × joints, 3)
     flags = fail[:, 1] | fail[:, 2]
     n_items = flags.shape[0]
-    rank = jnp.cumsum(flags) - 1
     items = jnp.arange(n_items)
-    slots = [flags & (rank == r) for r in range(SCREEN_SLOTS)]
-    idx = jnp.stack([jnp.sum(jnp.where(s, items, 0)) for s in slots])  # (R,)
+    # the first SCREEN_SLOTS flagged items, in order (index 0 for an empty slot)
+    rest, idx, filled = flags, [], []
+    for _ in range(SCREEN_SLOTS):
+        i = jnp.argmax(rest)
+        idx.append(i)
+        filled.append(rest[i])
+        rest = rest & (items > i)
+    idx = jnp.stack(idx)  # (R,)
     exact = extrema.rate_maxima(polys.reshape(n_items, -1)[idx], hh.reshape(-1)[idx])  # (R, 2)
     up_items = up.reshape(n_items, 3)
     # rates: the largest U of the spans not sent to the chain, then each chain result
     # (never above its span's U) at its joint; all values are >= 0
-    slotted = flags & (rank < SCREEN_SLOTS)
+    slotted = flags & ~rest
     rate = extrema.reduce_max(jnp.where(slotted[:, None], 0.0, up_items[:, 1:]).reshape(up.shape[:2] + (2,)), 0)
     joint = jnp.arange(up.shape[1])
     for r in range(SCREEN_SLOTS):
-        hit = (joint == idx[r] % up.shape[1]) & jnp.any(slots[r])  # (8,)
+        hit = (joint == idx[r] % up.shape[1]) & filled[r]  # (8,)
         rate = jnp.maximum(rate, jnp.where(hit[:, None], jnp.minimum(up_items[idx[r], 1:], exact[r]), 0.0))
     M = jnp.concatenate([extrema.reduce_max(up[..., :1], 0), rate], axis=1) + extra
     need = jnp.any(2.0 * rem > BOUND_TOLERANCE * lim[4:7])
-    over = (jnp.sum(flags) > SCREEN_SLOTS) | jnp.any(fail[:, 0])
+    over = jnp.any(rest) | jnp.any(fail[:, 0])
     return M, need, over, (polys.reshape(n_items, -1), hh.reshape(-1), extra)
 
 
