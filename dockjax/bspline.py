@@ -83,10 +83,13 @@ def basis_functions(u, spans, t, degree: int):
     n = [jnp.ones_like(t)]
     out = [n]
     for j in range(1, degree + 1):
+        # the stage's j divisions in one array operation (XLA:CPU would give each its own
+        # small kernel); elementwise, so every value is as the scalar recursion's
+        temps = jnp.stack(n) / jnp.stack([right[r] + left[j - r - 1] for r in range(j)])
         saved = jnp.zeros_like(t)
         new = []
         for r in range(j):
-            temp = n[r] / (right[r] + left[j - r - 1])
+            temp = temps[r]
             new.append(saved + right[r] * temp)
             saved = left[j - r - 1] * temp
         new.append(saved)
