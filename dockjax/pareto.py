@@ -270,6 +270,8 @@ def survive(F: jax.Array, cv: jax.Array, n_survive: int, return_rank: bool = Fal
     F, cv = jnp.asarray(F), jnp.asarray(cv)
     rank = nondominated_rank(F, cv, stop_after=n_survive)
     cd = crowding_distance(F, rank)
+    # a stable sort on (rank, -cd) breaks the remaining ties by index: the order of a
+    # three-key lexsort with the index last, with a cheaper comparison
     index = jnp.arange(F.shape[0])
-    order = jnp.lexsort((index, -cd, rank))[:n_survive].astype(jnp.int32)
+    order = lax.sort((rank, -cd, index), num_keys=2, is_stable=True)[2][:n_survive].astype(jnp.int32)
     return (order, rank[order]) if return_rank else order
