@@ -43,6 +43,7 @@ __all__ = [
     "rank_and_crowding",
     "survive",
     "total_violation",
+    "lexsort",
 ]
 
 
@@ -57,6 +58,52 @@ def total_violation(G: jax.Array) -> jax.Array:
     """
     G = jnp.asarray(G)
     return jnp.sum(jnp.maximum(G, 0), axis=-1)
+
+
+def _sort_key(x: jax.Array) -> jax.Array:
+    """int64 whose order is ``lax.sort``'s order of x: for floats, -0.0 equals +0.0 and
+    every NaN is last (JAX canonicalises both before comparing), the rest by value."""
+    if jnp.issubdtype(x.dtype, jnp.floating):
+        x = jnp.where(x == 0, jnp.zeros_like(x), x)
+        x = jnp.where(jnp.isnan(x), jnp.full_like(x, jnp.nan), x)
+        itype = jnp.dtype(f"int{8 * x.dtype.itemsize}")
+        b = lax.bitcast_convert_type(x, itype)
+        # negative floats: larger magnitude, smaller number
+        x = jnp.where(b < 0, b ^ jnp.array(jnp.iinfo(itype).max, itype), b)
+    return x.astype(jnp.int64)
+
+
+def lexsort(keys) -> jax.Array:
+    """``jnp.lexsort(keys)`` (the last key primary, ties in index order), the same
+    permutation, by one sort of packed integers.
+
+    XLA:CPU sorts a single integer array with a plain comparison, but calls a compiled
+    comparator for every comparison of a multi-key or floating-point sort: 3–5× dearer for
+    the few hundred members survival sorts. Each key is replaced by its ordinal (how many
+    values sort strictly before it: a sort of the key alone and a binary search), and the
+    ordinals and the index are packed into one int64. Falls back to ``jnp.lexsort`` when
+    64-bit integers are off (JAX's default precision) or the packed key would not fit.
+
+    Args:
+        keys: sequence of (..., n) arrays (bool, integer or floating), as ``jnp.lexsort``.
+
+    Returns:
+        (..., n) int32 permutation.
+    """
+    keys = [jnp.asarray(k) for k in keys]
+    n = keys[0].shape[-1]
+    bits = max(1, (n - 1).bit_length())
+    if jax.dtypes.canonicalize_dtype(jnp.int64) != jnp.int64 or bits * (len(keys) + 1) > 63:
+        return jnp.lexsort(keys).astype(jnp.int32)
+    if keys[0].ndim > 1:  # one sort per leading index
+        return jax.vmap(lambda *k: lexsort(k))(*keys)
+    packed = jnp.zeros(keys[0].shape, jnp.int64)
+    for k in keys[::-1]:  # primary key first, in the highest bits
+        u = _sort_key(k)
+        ordinal = jnp.searchsorted(lax.sort(u), u, side="left", method="scan")
+        packed = (packed << bits) | ordinal.astype(jnp.int64)
+    packed = (packed << bits) | jnp.arange(n, dtype=jnp.int64)
+    return (lax.sort(packed) & ((1 << bits) - 1)).astype(jnp.int32)
 
 
 def _pareto_dominance(F: jax.Array) -> jax.Array:
@@ -142,7 +189,7 @@ def nondominated_rank_2d(F: jax.Array, cv: jax.Array) -> jax.Array:
         raise ValueError(f"nondominated_rank_2d needs 2 objectives, got {F.shape[1]}")
     feasible = cv <= 0
     # Feasible first, each group in lexicographic (f1, f2) order; jnp.lexsort is stable.
-    order = jnp.lexsort((F[:, 1], F[:, 0], ~feasible))
+    order = lexsort((F[:, 1], F[:, 0], ~feasible))
     f1, f2, feas_s = F[order, 0], F[order, 1], feasible[order]
     n_steps = max(1, n.bit_length())  # enough halvings for an interval of n + 1 fronts
     inf = jnp.array(jnp.inf, dtype=F.dtype)
@@ -172,7 +219,7 @@ def nondominated_rank_2d(F: jax.Array, cv: jax.Array) -> jax.Array:
 
     # Infeasible: dense rank of the violation among the infeasible members.
     cv_key = jnp.where(feasible, jnp.inf, cv)
-    order_cv = jnp.argsort(cv_key, stable=True)
+    order_cv = lexsort((cv_key,))
     s = cv_key[order_cv]
     new_value = jnp.concatenate([jnp.zeros((1,), jnp.int32), (s[1:] != s[:-1]).astype(jnp.int32)])
     dense = jnp.zeros((n,), jnp.int32).at[order_cv].set(jnp.cumsum(new_value))
@@ -186,7 +233,7 @@ def _neighbour_gap(f: jax.Array, rank: jax.Array) -> jax.Array:
     for the front's two ends.
     """
     n = f.shape[0]
-    order = jnp.lexsort((f, rank))  # by front, then by value, then by index (stable)
+    order = lexsort((f, rank))  # by front, then by value, then by index
     fs, rs = f[order], rank[order]
     same = rs[1:] == rs[:-1]
     inner = jnp.concatenate([jnp.zeros((1,), bool), same]) & jnp.concatenate(
@@ -270,8 +317,5 @@ def survive(F: jax.Array, cv: jax.Array, n_survive: int, return_rank: bool = Fal
     F, cv = jnp.asarray(F), jnp.asarray(cv)
     rank = nondominated_rank(F, cv, stop_after=n_survive)
     cd = crowding_distance(F, rank)
-    # a stable sort on (rank, -cd) breaks the remaining ties by index: the order of a
-    # three-key lexsort with the index last, with a cheaper comparison
-    index = jnp.arange(F.shape[0])
-    order = lax.sort((rank, -cd, index), num_keys=2, is_stable=True)[2][:n_survive].astype(jnp.int32)
+    order = lexsort((-cd, rank))[:n_survive]  # ties by index
     return (order, rank[order]) if return_rank else order
