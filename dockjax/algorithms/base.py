@@ -181,7 +181,7 @@ def hypervolume_2d(F, feasible, ref):
     """
     big = jnp.asarray(jnp.inf, F.dtype)
     f1 = jnp.where(feasible & jnp.all(F < ref, axis=1), F[:, 0], big)
-    order = jnp.argsort(f1)
+    order = pareto.lexsort((f1,))
     f1s = f1[order]
     f2s = jnp.where(jnp.isfinite(f1s), F[order, 1], ref[1])
     best = jax.lax.cummin(f2s)

@@ -182,10 +182,10 @@ def update_repository(
     same_cube = _same_cube(coords, keep)
     position = jnp.sum(same_cube & (index[None, :] < index[:, None]), axis=1)  # earlier cube mates
     position = jnp.where(keep, position, total)  # non-members sort last
-    chosen = jnp.lexsort((index, position))[:k]
+    chosen = pareto.lexsort((position,))[:k]  # ties by index
     chosen_valid = position[chosen] < total
     # Present the chosen members in candidate order (incumbents keep their order), then padding.
-    order = jnp.argsort(jnp.where(chosen_valid, chosen, chosen + total))
+    order = pareto.lexsort((jnp.where(chosen_valid, chosen, chosen + total),))
     chosen, chosen_valid = chosen[order], chosen_valid[order]
     repo = jax.tree_util.tree_map(lambda a: a[chosen], cand)
     return _mask_population(repo, chosen_valid), chosen_valid
