@@ -18,7 +18,9 @@ the derivative control points of Eq. 22 and the Cox–de Boor basis (Eq. 16).
 from __future__ import annotations
 
 import math
+from functools import partial
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -68,6 +70,31 @@ def line_control_points(start, goal):
     return start + s * (goal - start)
 
 
+def _basis_recursion(u, spans, t, degree: int, stacked: bool):
+    """Cox–de Boor triangle of :func:`basis_functions`; ``stacked``: a stage's j divisions
+    as one array operation (XLA:CPU gives each separate division its own small kernel).
+    The divisions are elementwise either way, so the values are identical."""
+    spans = np.asarray(spans)
+    left = [t - u[spans + 1 - j] for j in range(1, degree + 1)]
+    right = [u[spans + j] - t for j in range(1, degree + 1)]
+    n = [jnp.ones_like(t)]
+    out = [n]
+    for j in range(1, degree + 1):
+        if stacked:
+            temps = list(jnp.stack(n) / jnp.stack([right[r] + left[j - r - 1] for r in range(j)]))
+        saved = jnp.zeros_like(t)
+        new = []
+        for r in range(j):
+            temp = temps[r] if stacked else n[r] / (right[r] + left[j - r - 1])
+            new.append(saved + right[r] * temp)
+            saved = left[j - r - 1] * temp
+        new.append(saved)
+        n = new
+        out.append(n)
+    return out
+
+
+@partial(jax.custom_jvp, nondiff_argnums=(1, 3))
 def basis_functions(u, spans, t, degree: int):
     """The nonzero basis functions of every degree 0..``degree`` (Eq. 16) at points t.
 
@@ -76,26 +103,17 @@ def basis_functions(u, spans, t, degree: int):
     point's knot span, ``u[span] <= t <= u[span + 1]`` with ``u[span] < u[span + 1]``, so
     no denominator vanishes. u: (m,), t: shaped like ``spans`` → a list whose entry q is
     the ``q + 1`` functions ``N_{span−q..span, q}(t)`` (each shaped like t) of degree q.
+
+    The value computes a stage's divisions together (fewer, larger kernels); derivatives
+    differentiate the plain recursion, one division at a time, so that gradients are
+    rounded exactly as they were before that change.
     """
-    spans = np.asarray(spans)
-    left = [t - u[spans + 1 - j] for j in range(1, degree + 1)]
-    right = [u[spans + j] - t for j in range(1, degree + 1)]
-    n = [jnp.ones_like(t)]
-    out = [n]
-    for j in range(1, degree + 1):
-        # the stage's j divisions in one array operation (XLA:CPU would give each its own
-        # small kernel); elementwise, so every value is as the scalar recursion's
-        temps = jnp.stack(n) / jnp.stack([right[r] + left[j - r - 1] for r in range(j)])
-        saved = jnp.zeros_like(t)
-        new = []
-        for r in range(j):
-            temp = temps[r]
-            new.append(saved + right[r] * temp)
-            saved = left[j - r - 1] * temp
-        new.append(saved)
-        n = new
-        out.append(n)
-    return out
+    return _basis_recursion(u, spans, t, degree, stacked=True)
+
+
+@basis_functions.defjvp
+def _basis_functions_jvp(spans, degree, primals, tangents):
+    return jax.jvp(lambda u, t: _basis_recursion(u, spans, t, degree, stacked=False), primals, tangents)
 
 
 def _derivative_levels(ctrl, u, order: int):
