@@ -73,7 +73,12 @@ def _sort_key(x: jax.Array) -> jax.Array:
     return x.astype(jnp.int64)
 
 
-def lexsort(keys) -> jax.Array:
+PACKED_MIN = 64
+"""Members from which :func:`lexsort` packs its keys (below, JAX's sort is as cheap and
+compiles smaller)."""
+
+
+def lexsort(keys, packed: bool | None = None) -> jax.Array:
     """``jnp.lexsort(keys)`` (the last key primary, ties in index order), the same
     permutation, by one sort of packed integers.
 
@@ -86,6 +91,8 @@ def lexsort(keys) -> jax.Array:
 
     Args:
         keys: sequence of (..., n) arrays (bool, integer or floating), as ``jnp.lexsort``.
+        packed: force (True) or refuse (False) the packed sort; default: packed from
+            :data:`PACKED_MIN` members.
 
     Returns:
         (..., n) int32 permutation.
@@ -93,10 +100,11 @@ def lexsort(keys) -> jax.Array:
     keys = [jnp.asarray(k) for k in keys]
     n = keys[0].shape[-1]
     bits = max(1, (n - 1).bit_length())
-    if jax.dtypes.canonicalize_dtype(jnp.int64) != jnp.int64 or bits * (len(keys) + 1) > 63:
+    packed = n >= PACKED_MIN if packed is None else packed
+    if not packed or jax.dtypes.canonicalize_dtype(jnp.int64) != jnp.int64 or bits * (len(keys) + 1) > 63:
         return jnp.lexsort(keys).astype(jnp.int32)
     if keys[0].ndim > 1:  # one sort per leading index
-        return jax.vmap(lambda *k: lexsort(k))(*keys)
+        return jax.vmap(lambda *k: lexsort(k, packed=True))(*keys)
     packed = jnp.zeros(keys[0].shape, jnp.int64)
     for k in keys[::-1]:  # primary key first, in the highest bits
         u = _sort_key(k)

@@ -418,7 +418,7 @@ def key_sets(draw):
     return keys
 
 
-lexsort_jit = jax.jit(lambda keys: pareto.lexsort(keys))
+lexsort_jit = jax.jit(lambda keys: pareto.lexsort(keys, packed=True))  # at every size
 reference_lexsort = jax.jit(lambda keys: jnp.lexsort(keys))
 
 
@@ -447,8 +447,11 @@ def test_packed_lexsort_falls_back_to_jax_lexsort():
     63 bits (4 fields of 16 bits for 65,536 members), the permutation is JAX's own."""
     rng = np.random.default_rng(5)
     small = [rng.integers(0, 3, 50).astype(np.float32), rng.integers(0, 3, 50).astype(np.int32)]
-    np.testing.assert_array_equal(pareto.lexsort(small), jnp.lexsort(small))
+    np.testing.assert_array_equal(pareto.lexsort(small, packed=True), jnp.lexsort(small))
     big = [rng.integers(0, 9, 2**16).astype(np.float64) for _ in range(3)]
     with jax.enable_x64(True):
         np.testing.assert_array_equal(pareto.lexsort(big), jnp.lexsort(big))
         assert np.asarray(pareto.lexsort(big)).dtype == np.int32
+        # below PACKED_MIN members JAX's own sort is used unless packing is asked for
+        few = [rng.integers(0, 3, pareto.PACKED_MIN - 1).astype(np.float64) for _ in range(2)]
+        np.testing.assert_array_equal(pareto.lexsort(few), jnp.lexsort(few))
