@@ -98,6 +98,10 @@ def lexsort(keys, packed: bool | None = None) -> jax.Array:
         (..., n) int32 permutation.
     """
     keys = [jnp.asarray(k) for k in keys]
+    if not keys or keys[0].ndim == 0:
+        raise ValueError("lexsort needs at least one key of at least one dimension")
+    if any(k.shape != keys[0].shape for k in keys):
+        raise ValueError(f"lexsort keys must share one shape, got {[k.shape for k in keys]}")
     n = keys[0].shape[-1]
     bits = max(1, (n - 1).bit_length())
     packed = n >= PACKED_MIN if packed is None else packed

@@ -455,3 +455,10 @@ def test_packed_lexsort_falls_back_to_jax_lexsort():
         # below PACKED_MIN members JAX's own sort is used unless packing is asked for
         few = [rng.integers(0, 3, pareto.PACKED_MIN - 1).astype(np.float64) for _ in range(2)]
         np.testing.assert_array_equal(pareto.lexsort(few), jnp.lexsort(few))
+
+
+def test_packed_lexsort_rejects_bad_keys():
+    with pytest.raises(ValueError, match="at least one key"):
+        pareto.lexsort([])
+    with pytest.raises(ValueError, match="share one shape"):
+        pareto.lexsort([np.zeros(3), np.zeros(4)])
