@@ -109,13 +109,13 @@ def lexsort(keys, packed: bool | None = None) -> jax.Array:
         return jnp.lexsort(keys).astype(jnp.int32)
     if keys[0].ndim > 1:  # one sort per leading index
         return jax.vmap(lambda *k: lexsort(k, packed=True))(*keys)
-    packed = jnp.zeros(keys[0].shape, jnp.int64)
+    word = jnp.zeros(keys[0].shape, jnp.int64)
     for k in keys[::-1]:  # primary key first, in the highest bits
         u = _sort_key(k)
         ordinal = jnp.searchsorted(lax.sort(u), u, side="left", method="scan")
-        packed = (packed << bits) | ordinal.astype(jnp.int64)
-    packed = (packed << bits) | jnp.arange(n, dtype=jnp.int64)
-    return (lax.sort(packed) & ((1 << bits) - 1)).astype(jnp.int32)
+        word = (word << bits) | ordinal.astype(jnp.int64)
+    word = (word << bits) | jnp.arange(n, dtype=jnp.int64)
+    return (lax.sort(word) & ((1 << bits) - 1)).astype(jnp.int32)
 
 
 def _pareto_dominance(F: jax.Array) -> jax.Array:
