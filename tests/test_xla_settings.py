@@ -37,6 +37,15 @@ for label, d in (("one", 1), ("two", None)):
     out[f"single_{label}_layout"] = [r.extra["devices"], r.extra["share_rows"]]
     for field in ("U", "F", "front", "history"):
         out[f"single_{label}_{field}"] = getattr(r, field)
+from dockjax import devices as dev
+mesh = dev.mesh(jax.local_devices()[:2])
+Xs = jnp.asarray(np.random.default_rng(2).normal(size=(3, 7, 4)))  # 7 rows along axis 1
+def rowwise(x):  # results of two dtypes and three shapes, rows along axis 1
+    return {"sum": x.sum(-1), "idx": jnp.argmax(x, -1).astype(jnp.int32), "outer": x[..., :, None] * x[..., None, :2]}
+shared = jax.jit(lambda x: dev.replicated(lambda x: dev.share_rows(rowwise, 2, x, axis=1), (), mesh, x))(Xs)
+for name, value in shared.items():
+    out[f"share_rows_{name}"] = np.asarray(value)
+    out[f"share_rows_{name}_direct"] = np.asarray(jax.jit(rowwise)(Xs)[name])
 from dockjax import DockingProblem
 problem = DockingProblem()
 X = np.random.default_rng(1).uniform(problem.lower, problem.upper, (600, problem.n_var))
@@ -101,6 +110,17 @@ def test_one_run_shares_its_rows_over_two_devices(other_process):
     for field in ("U", "F", "front", "history"):
         np.testing.assert_array_equal(o[f"single_two_{field}"], o[f"single_one_{field}"], err_msg=field)
     assert o["single_two_F"].shape == (1, 11, 2) and o["single_two_history"].shape == (1, 4)
+
+
+def test_share_rows_gathers_results_of_several_dtypes_and_shapes(other_process):
+    """:func:`dockjax.devices.share_rows` gathers all results of one dtype in one
+    ``all_gather``: 7 rows (4 and 3, padded) along axis 1 of results of two dtypes and
+    three shapes must come back equal to the function on the whole array."""
+    o = other_process
+    for name, shape in (("sum", (3, 7)), ("idx", (3, 7)), ("outer", (3, 7, 4, 2))):
+        assert o[f"share_rows_{name}"].shape == shape
+        np.testing.assert_array_equal(o[f"share_rows_{name}"], o[f"share_rows_{name}_direct"], err_msg=name)
+    assert o["share_rows_idx"].dtype == np.int32
 
 
 def test_evaluate_shared_over_two_devices_equals_one_device(other_process):
