@@ -118,7 +118,7 @@ def share_rows(fn: Callable, parts: int, X, axis: int = 0):
         whole = jax.lax.all_gather(flat, AXIS, axis=0, tiled=True)[:n]
         start = 0
         for i, r in zip(idx, rows):
-            width = int(np.prod(r.shape[1:], dtype=int))
+            width = r[0].size
             piece = whole[:, start:start + width].reshape((n,) + r.shape[1:])
             out[i] = jax.numpy.moveaxis(piece, 0, axis)
             start += width
