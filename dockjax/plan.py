@@ -3,7 +3,8 @@
 :func:`plan` optimises the problem (IMOCS by default), ranks the feasible front by the
 weighted satisfaction of Eq. 26 (SPEC §8), and certifies the best candidate before anything
 is written: the trajectory sampled at the servo rate must respect every limit at every
-sample, and the kernel's exact per-span extrema (SPEC §6, never understated) must too. If
+sample, and the kernel's per-span maxima (SPEC §6: rigorous upper bounds, never
+understated, in every right-arm treatment) must too. If
 the chosen candidate fails, the next best is tried; if none passes, :class:`PlanError`
 names the limit that cannot be met.
 """
@@ -49,8 +50,10 @@ class Plan:
 
     def margins(self) -> dict:
         """Per joint: max |velocity|, |acceleration|, travel about home (from the samples),
-        and certified margins to the limits (from the kernel's G: exact within 5 % of a
-        limit, otherwise conservative by at most 0.9 % of the limit)."""
+        and certified margins to the limits (from the kernel's G, never understated: within
+        5 % of a limit exact for the joints linear in the pose and within the right-arm
+        treatment's tolerance for the others; otherwise conservative by at most 1 % of the
+        limit)."""
         s, lim = self.samples, self.problem.limits
         G = self.problem.evaluate(self.x[None])[1][0].reshape(8, 3)
         out = {}
@@ -187,7 +190,7 @@ def write_plan(p: Plan, out: str | Path) -> list[Path]:
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     files.append(out / "summary.json")
-    label = "imocs+refine" if p.settings.get("refine") else "imocs"
+    label = p.settings.get("algorithm", "imocs") + ("+refine" if p.settings.get("refine") else "")
     files.append(plots.plot_fronts({label: p.front}, out / "front.png", highlight=(p.T, p.jerk),
                                    title=f"front and chosen point (T = {p.T:.2f} s)"))
     s = p.samples

@@ -10,12 +10,14 @@
   decision box's range of pitch and yaw requires for 1e-9 relative: SPEC §5,
   :data:`JERK_NODES`);
 * ``G[:, 3j + k] = max_t |quantity_k(t)| / limit_k − 1`` for joint j and quantity
-  k ∈ (travel about home, velocity, acceleration) (SPEC §6). The maxima are exact: for the
-  joints linear in the pose they sit at span ends or at roots of the next derivative,
-  found by the derivative chain of :mod:`dockjax.extrema`; for the right arm's nonlinear
-  joints the roots of the first-order expansion (in pitch and yaw about the span's middle)
-  are polished by one Newton step on the true joint function and the true value is taken.
-  A safety margin of ``1e-9`` is added, so a column is never understated.
+  k ∈ (travel about home, velocity, acceleration) (SPEC §6). No column is ever below the
+  true maximum: for the joints linear in the pose the extrema sit at span ends or at roots
+  of the next derivative, found by the derivative chain of :mod:`dockjax.extrema`, each
+  root certified by a sign change and its value carrying a rigorous margin; for the right
+  arm's nonlinear joints every treatment (``right_arm``, see :class:`DockingProblem`) is
+  an enclosure — the first-order expansion in pitch and yaw plus a remainder bound
+  (``"bound"``), or Taylor models on sub-spans (``"taylor"``, :func:`right_taylor_maxima`).
+  A safety margin of ``1e-9`` of the limit is added against rounding.
   **Screening** (the batch default, :func:`_maxima_screened`): cheap bounds from a grid of
   samples per span decide which spans can hold a column's maximum; only those go through
   the root chain. Columns within 5 % of their limit are exact as above; the others
@@ -29,9 +31,12 @@ the same shape.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import warnings
+from dataclasses import field
 from functools import partial
-from typing import Sequence
+from typing import Any, ClassVar, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -40,6 +45,7 @@ import numpy as np
 from . import bspline, config, extrema, jets
 from . import devices as dev
 from .fusion import materialize
+from .pytrees import pytree_dataclass, static
 from .kinematics import inverse_kinematics
 
 __all__ = ["DockingProblem", "score", "score_batch"]
@@ -47,6 +53,8 @@ __all__ = ["DockingProblem", "score", "score_batch"]
 _DEG = math.pi / 180.0
 G_SAFETY = 1e-9
 """Added to every constraint column so that rounding never understates it (SPEC §6)."""
+RIGHT_ARM_MODES = ("auto", "bound", "taylor", "adaptive")
+"""The treatments of the right arm's nonlinear joints (see :class:`DockingProblem`)."""
 BOUND_TOLERANCE = 1e-2
 """SPEC §6: the most a G column may overstate its true value."""
 
@@ -93,6 +101,7 @@ def _per_joint(name: str, value) -> np.ndarray:
     return np.tile(arr, 2) if arr.shape[0] == 4 else arr
 
 
+@pytree_dataclass(kw_only=True, eq=False)
 class DockingProblem:
     """The paper's trajectory-planning problem as a batched scoring kernel.
 
@@ -109,64 +118,85 @@ class DockingProblem:
     * ``margin``: relative margin of the control-point box (SPEC §3).
     * ``reduced``: if true, only the six intervals are free and ``d_3..d_7`` lie evenly
       spaced on the segment from start to goal (SPEC §3); ``n_var`` is then 6.
-    * ``right_arm``: how the limits of the right arm's nonlinear joints are found:
-      ``"bound"`` — exact extrema of the first-order expansion in pitch and yaw plus a
-      rigorous bound of the remainder (fast; never understated; overstated by twice the
-      bound, far below 0.01 when pitch and yaw move by tenths of a degree, as in the
-      paper); ``"exact"`` — the true joint at the polished roots (slower; for large
-      attitude changes); ``"adaptive"`` — ``"bound"`` for every candidate whose own
-      overstatement bound (twice its remainder bound) is at most 0.01, ``"exact"`` for the
-      others, which are gathered and scored in fixed-size chunks (the exact path runs only
-      as often as needed); ``"auto"`` (default) picks ``"bound"`` when its worst-case
-      overstatement over the decision box (a crude hull estimate) is below 0.01, else
-      ``"adaptive"``.
+    * ``right_arm``: how the limits of the right arm's nonlinear joints are found; every
+      treatment gives columns that are never below the true maxima:
+
+      - ``"bound"``: exact extrema of the first-order expansion in pitch and yaw plus a
+        rigorous bound of the remainder (fast). It overstates by at most twice that bound,
+        which is far below 0.01 of the limit when pitch and yaw move slowly (tenths of a
+        degree over seconds, as in the paper) but not in general: the remainder of the
+        acceleration grows with the square of the angular rates, whatever the span length.
+      - ``"taylor"``: Taylor models on sub-spans (:func:`right_taylor_maxima`): the true
+        joint's degree-5 Taylor polynomial on as many sub-spans as the remainder needs,
+        its certified root chain, and a rigorous remainder bound. Within
+        :data:`TAYLOR_TIGHT` (1e-8) of the limit where it matters (columns within 5 % of
+        their limit; every column with ``screen=False``) and within :data:`TAYLOR_LOOSE`
+        (0.005) elsewhere, as long as ``2**TAYLOR_TIGHT_LEVELS`` and
+        ``2**TAYLOR_LEVELS`` sub-spans per knot span suffice (beyond, still never
+        understated). The dearest treatment.
+      - ``"adaptive"``: ``"bound"`` for every candidate whose own overstatement bound is at
+        most 0.01, ``"taylor"`` for the others (gathered and scored in fixed-size chunks,
+        so the dear path runs only as often as needed). Within 0.01 everywhere.
+      - ``"auto"`` (default): ``"bound"`` when its worst-case overstatement over the
+        decision box (a hull estimate) is at most 0.01, else ``"adaptive"``; candidates
+        that :meth:`evaluate` receives from outside the box, where the bound may exceed
+        0.01, are re-scored by ``"adaptive"``. Within 0.01 everywhere.
+      (``"exact"``, the former name of ``"taylor"``, is accepted with a warning.)
     * ``jerk_nodes``: Gauss–Legendre nodes per knot span of the right arm's jerk integral
       (3 to 64); default None: 8, 12 or 24 from the box's range of pitch and yaw, enough
       for 1e-9 relative (:data:`JERK_NODES`).
 
     Attributes: ``n_var``, ``n_obj`` (2), ``n_con`` (24), ``lower``, ``upper`` (natural
-    units, SPEC §3 order), ``limits`` (8, 3), ``home`` (8,), ``start``, ``goal``,
-    ``right_arm``, ``jerk_nodes``.
+    units, SPEC §3 order), ``limits`` (8, 3), and the arguments in resolved form: ``start``,
+    ``goal`` (6,), ``arm_distance``, ``interval_bounds`` (a pair of floats), ``travel``,
+    ``velocity``, ``acceleration``, ``home`` (8,), ``margin``, ``reduced``, ``right_arm``
+    (never ``"auto"``), ``jerk_nodes`` (an int).
+
+    The problem is a JAX pytree (a frozen dataclass): its arrays and numbers are leaves,
+    traced under ``jit`` (one compiled kernel serves every start, goal and limit), and
+    ``reduced``, ``right_arm`` and ``jerk_nodes`` are static.
     """
 
-    n_obj = 2
-    n_con = config.N_CON
+    n_obj: ClassVar[int] = 2
+    n_con: ClassVar[int] = config.N_CON
 
-    def __init__(
-        self,
-        *,
-        start: Sequence[float] = config.START,
-        goal: Sequence[float] = config.GOAL,
-        arm_distance: float = config.ARM_DISTANCE,
-        interval_bounds: tuple[float, float] = config.INTERVAL_BOUNDS,
-        travel: Sequence[float] = config.TRAVEL,
-        velocity: Sequence[float] = config.VELOCITY,
-        acceleration: Sequence[float] = config.ACCELERATION,
-        home: Sequence[float] | None = None,
-        margin: float = config.MARGIN,
-        reduced: bool = False,
-        right_arm: str = "auto",
-        jerk_nodes: int | None = None,
-    ):
-        start_a = _vector("start", start, (6,))
-        goal_a = _vector("goal", goal, (6,))
-        d2 = _vector("arm_distance", [arm_distance], (1,), positive=True)[0]
-        bounds = _vector("interval_bounds", interval_bounds, (2,))
+    start: Any = config.START
+    goal: Any = config.GOAL
+    arm_distance: Any = config.ARM_DISTANCE
+    interval_bounds: Any = config.INTERVAL_BOUNDS
+    travel: Any = config.TRAVEL
+    velocity: Any = config.VELOCITY
+    acceleration: Any = config.ACCELERATION
+    home: Any = None
+    margin: Any = config.MARGIN
+    reduced: bool = static(False)
+    right_arm: str = static("auto")
+    jerk_nodes: int | None = static(None)
+    box: Any = None
+    """``(lower, upper)`` of the decision vector, derived in the constructor (pass None)."""
+    _auto_bound: bool = field(default=False, init=False, repr=False)
+    """``right_arm="auto"`` chose ``"bound"`` (host-side only: not part of the pytree)."""
+
+    def __post_init__(self):
+        if self.box is not None:  # rebuilt from its fields (jit, vmap, tree_map, replace)
+            return
+        set_ = partial(object.__setattr__, self)
+        start_a = _vector("start", self.start, (6,))
+        goal_a = _vector("goal", self.goal, (6,))
+        d2 = _vector("arm_distance", [self.arm_distance], (1,), positive=True)[0]
+        bounds = _vector("interval_bounds", self.interval_bounds, (2,))
         lo, hi = bounds
         if lo <= 0 or lo >= hi:
             raise ValueError(f"interval_bounds must satisfy 0 < lo < hi, got ({lo}, {hi})")
-        mg = _vector("margin", [margin], (1,))[0]
+        mg = _vector("margin", [self.margin], (1,))[0]
         if mg < 0:
             raise ValueError(f"margin must be >= 0, got {mg}")
-        limits = np.stack(
-            [_per_joint("travel", travel), _per_joint("velocity", velocity),
-             _per_joint("acceleration", acceleration)],
-            axis=1,
-        )
+        travel, velocity, acceleration = (_per_joint(k, getattr(self, k)) for k in ("travel", "velocity", "acceleration"))
+        limits = np.stack([travel, velocity, acceleration], axis=1)
         with jax.enable_x64(True):
             q0 = np.asarray(inverse_kinematics(start_a, d2))
             q1 = np.asarray(inverse_kinematics(goal_a, d2))
-        home_a = 0.5 * (q0 + q1) if home is None else _vector("home", home, (8,))
+        home_a = 0.5 * (q0 + q1) if self.home is None else _vector("home", self.home, (8,))
         for j, name in enumerate(config.JOINT_NAMES):
             move = abs(q1[j] - q0[j])
             if move > 2 * limits[j, 0]:
@@ -182,51 +212,49 @@ class DockingProblem:
                     )
         box_lo, box_hi = _control_box(start_a, goal_a, mg)
         h_lo, h_hi = np.full(6, lo), np.full(6, hi)
-        if reduced:
+        if self.reduced:
             lower, upper = h_lo, h_hi
         else:
             lower = np.concatenate([h_lo, np.tile(box_lo, config.N_FREE)])
             upper = np.concatenate([h_hi, np.tile(box_hi, config.N_FREE)])
-        self.start, self.goal, self.arm_distance = start_a, goal_a, float(d2)
-        self.interval_bounds = (float(lo), float(hi))
-        # traced leaves (not static), so they never cause a recompilation
-        self._bounds_margin = np.array([lo, hi, mg])
-        self.limits, self.home = limits, home_a
-        self.lower, self.upper = lower, upper
-        self.margin, self.reduced = float(mg), bool(reduced)
-        if right_arm not in ("auto", "bound", "exact", "adaptive"):
-            raise ValueError(f"right_arm must be 'auto', 'bound', 'exact' or 'adaptive', got {right_arm!r}")
+        for k, v in (("start", start_a), ("goal", goal_a), ("arm_distance", float(d2)),
+                     ("interval_bounds", (float(lo), float(hi))), ("travel", travel), ("velocity", velocity),
+                     ("acceleration", acceleration), ("home", home_a), ("margin", float(mg)),
+                     ("reduced", bool(self.reduced)), ("box", (lower, upper))):
+            set_(k, v)
+        right_arm = self.right_arm
+        if right_arm == "exact":
+            warnings.warn("right_arm='exact' is now called 'taylor'", DeprecationWarning, stacklevel=3)
+            right_arm = "taylor"
+        if right_arm not in RIGHT_ARM_MODES:
+            raise ValueError(f"right_arm must be one of {', '.join(map(repr, RIGHT_ARM_MODES))}, got {right_arm!r}")
+        set_("_auto_bound", right_arm == "auto" and self._bound_overstatement() <= BOUND_TOLERANCE)
         if right_arm == "auto":
-            right_arm = "bound" if self._bound_overstatement() <= BOUND_TOLERANCE else "adaptive"
-        self.right_arm = right_arm
+            right_arm = "bound" if self._auto_bound else "adaptive"
+        set_("right_arm", right_arm)
+        jerk_nodes = self.jerk_nodes
         if jerk_nodes is None:
             box = self._pose_box()
             jerk_nodes = jerk_nodes_for(float(np.max(box[1, 3:5] - box[0, 3:5])))
         elif isinstance(jerk_nodes, bool) or not isinstance(jerk_nodes, (int, np.integer)) or not 3 <= jerk_nodes <= 64:
             raise ValueError(f"jerk_nodes must be None (chosen from the box) or an integer from 3 to 64, got {jerk_nodes!r}")
-        self.jerk_nodes = int(jerk_nodes)
+        set_("jerk_nodes", int(jerk_nodes))
 
-    # -- pytree -------------------------------------------------------------------------
-    _LEAVES = ("start", "goal", "arm_distance", "limits", "home", "lower", "upper", "_bounds_margin")
-    _META = ("reduced", "right_arm", "jerk_nodes")
+    @property
+    def lower(self):
+        """Lower bounds of the decision vector (n_var,), natural units (SPEC §3)."""
+        return self.box[0]
 
-    def _tree_flatten(self):
-        return tuple(getattr(self, k) for k in self._LEAVES), tuple(
-            getattr(self, k) for k in self._META
-        )
+    @property
+    def upper(self):
+        """Upper bounds of the decision vector (n_var,), natural units (SPEC §3)."""
+        return self.box[1]
 
-    @classmethod
-    def _tree_unflatten(cls, meta, leaves):
-        obj = object.__new__(cls)
-        for k, v in zip(cls._LEAVES, leaves):
-            object.__setattr__(obj, k, v)
-        for k, v in zip(cls._META, meta):
-            object.__setattr__(obj, k, v)
-        bm = obj._bounds_margin
-        if isinstance(bm, np.ndarray):
-            object.__setattr__(obj, "interval_bounds", (float(bm[0]), float(bm[1])))
-            object.__setattr__(obj, "margin", float(bm[2]))
-        return obj
+    @property
+    def limits(self):
+        """Limits (8 joints, 3): travel about home, |velocity|, |acceleration| (Table 2)."""
+        stack = jnp.stack if isinstance(self.travel, jax.Array) else np.stack
+        return stack([self.travel, self.velocity, self.acceleration], axis=1)
 
     def _pose_box(self) -> np.ndarray:
         """The control points' box (:func:`_control_box`), also in the reduced setting, so
@@ -253,15 +281,10 @@ class DockingProblem:
 
     def with_right_arm(self, mode: str) -> "DockingProblem":
         """The same problem with another treatment of the right arm (``"bound"``,
-        ``"exact"`` or ``"adaptive"``); shares every array."""
-        if mode not in ("bound", "exact", "adaptive"):
-            raise ValueError(f"mode must be 'bound', 'exact' or 'adaptive', got {mode!r}")
-        leaves, meta = self._tree_flatten()
-        return DockingProblem._tree_unflatten((meta[0], mode) + meta[2:], leaves)
-
-    @property
-    def exact_right_arm(self) -> bool:
-        return self.right_arm == "exact"
+        ``"taylor"`` or ``"adaptive"``); shares every array."""
+        if mode not in RIGHT_ARM_MODES[1:]:
+            raise ValueError(f"mode must be 'bound', 'taylor' or 'adaptive', got {mode!r}")
+        return dataclasses.replace(self, right_arm=mode)
 
     # -- public API ---------------------------------------------------------------------
     @property
@@ -323,8 +346,17 @@ class DockingProblem:
         dtype = jnp.float64 if precision == "float64" else jnp.float32
         with jax.enable_x64(precision == "float64"):
             Xj = dev.put(jnp.asarray(padded, dtype), where)
-            F, G = dev.sharded(_evaluate_rows, (bool(screen),), where, (dev.SAME, dev.SHARDED), self, Xj)
-            return np.asarray(F, np.float64)[:n], np.asarray(G, np.float64)[:n]
+            F, G, need = dev.sharded(_evaluate_rows, (bool(screen),), where, (dev.SAME, dev.SHARDED), self, Xj)
+            F, G = np.asarray(F, np.float64)[:n], np.asarray(G, np.float64)[:n]
+        rows = np.flatnonzero(np.asarray(need)[:n]) if self._auto_bound else ()
+        if len(rows):
+            # "auto" chose the bound because it meets SPEC §6's 0.01 on the decision box;
+            # these rows (outside the box) are where it may not: the adaptive treatment
+            # re-scores them (compiled only when first needed)
+            G = np.array(G)
+            _, G[rows] = self.with_right_arm("adaptive").evaluate(arr[rows], precision=precision, screen=screen,
+                                                                   devices=devices)
+        return F, G
 
     def evaluate_jax(self, X, *, screen: bool = True):
         """Traceable batch scoring for use inside jit/vmap (the caller sets the precision).
@@ -337,11 +369,6 @@ class DockingProblem:
 
         arr = self.check_population(np.asarray(x, dtype=np.float64)[None, :])[0]
         return Trajectory(self, arr)
-
-
-jax.tree_util.register_pytree_node(
-    DockingProblem, DockingProblem._tree_flatten, DockingProblem._tree_unflatten
-)
 
 
 # -- the kernel ----------------------------------------------------------------------------
@@ -429,17 +456,19 @@ def _joint_polys(problem: DockingProblem, c, h, ref):
     return polys - problem.home[None, :, None] * e0
 
 
-def _maxima(problem: DockingProblem, c, h, ref, *, with_need: bool = False):
+def _maxima(problem: DockingProblem, c, h, ref, *, with_need: bool = False, screen: bool = False):
     """``max_t |q_j − home_j|``, ``max |q_j'|``, ``max |q_j''|`` per joint. → (8, 3).
 
     With ``with_need``, also whether this candidate's bound treatment of the right arm may
-    overstate by more than :data:`BOUND_TOLERANCE` (always False on the exact path)."""
+    overstate by more than :data:`BOUND_TOLERANCE` (always False in the ``"taylor"``
+    treatment). ``screen``: as in :func:`right_taylor_maxima` (the ``"taylor"`` treatment's
+    choice of tight columns)."""
     polys = materialize(_joint_polys(problem, c, h, ref))
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
-    spans, times = extrema.span_maxima(polys, hh)
+    spans, _ = extrema.span_maxima(polys, hh)
     lin = extrema.reduce_max(spans, 0)  # (8, 3)
-    if problem.right_arm == "exact":
-        right = _right_polished(problem, c, h, ref, times)
+    if problem.right_arm == "taylor":
+        right = right_taylor_maxima(problem, c[None], h[None], tuple(a[None] for a in ref), screen)[0]
         need = jnp.zeros((), bool)
     else:
         rem = extrema.reduce_max(_right_remainder_bounds(problem, c, h, ref), 0)  # (3 joints, 3)
@@ -559,51 +588,235 @@ def _right_remainder_bounds(problem: DockingProblem, c, h, ref):
     return _remainder_bound(problem.arm_distance, hess, norm(dev), norm(vel), norm(acc))
 
 
-def _right_polished(problem: DockingProblem, c, h, ref, times, newton: int = 4):
-    """Right arm's nonlinear joints, for large attitude changes: from the roots of the
-    linearised joint, ``newton`` Newton steps on the true joint's derivative, then the true
-    value plus twice the last Newton correction ``Q'²/|Q''|`` (quadratic convergence makes
-    it an overstatement of the remaining error), and the span ends. → (3 joints, 3)."""
-    inner = jnp.concatenate([times[0][0][:, 4:7, 1:5], times[1][0][:, 4:7, 1:4], times[2][:, 4:7, 1:3]], -1)
-    kind = np.array([0] * 4 + [1] * 3 + [2] * 2)  # the quantity each of the 9 points is a root for
-    n_pts = kind.size
-    diag = np.arange(3)
+TAYLOR_TIGHT = 1e-8
+"""Target overstatement of the ``"taylor"`` treatment, in units of the limit, for the
+columns it makes tight (those near their limit, or all with ``screen=False``): twice the
+remainder bound of every sub-span that can hold the maximum, when at most
+``2**TAYLOR_TIGHT_LEVELS`` sub-spans per knot span achieve it."""
+TAYLOR_TIGHT_LEVELS = 5
+TAYLOR_LOOSE = 0.005
+"""Target overstatement of the ``"taylor"`` treatment's first pass, in units of the limit
+(half of SPEC §6's 0.01), met whenever ``2**TAYLOR_LEVELS`` sub-spans per knot span do."""
+TAYLOR_LEVELS = 14
+TAYLOR_ANCHORS = (0, 1, 2, 4, 7, 10, 13)
+"""Subdivision levels at which :func:`_taylor_anchors` evaluates the remainder bounds."""
+TAYLOR_ROUND = 96
+"""Sub-spans scored per trip of the ``"taylor"`` treatment's loop."""
 
-    def jets_at(pts):
-        """Derivatives 0..4 of joint r at its own points pts[:, r]: (6, 3, 9) → (6, 3, 9, 5)
-        (all three joints at all 27 points in one call, then each joint's own)."""
-        d = jets.derivatives(right_jets(problem, c, pts.reshape(pts.shape[0], -1), 4, (0, 1, 2), ref))
-        return d.reshape(pts.shape[0], 3, n_pts, 3, -1)[:, diag, :, diag].swapaxes(0, 1)
 
-    def pick(d, i):  # derivative kind + i at each point: (6, 3, 9)
-        return d[:, :, np.arange(n_pts), kind + i]
+def _hyperbolic_jet6(w, r):
+    """Sixth Taylor coefficients ``(cosh U)_6``, ``(sinh U)_6`` at r of ``U(s) = Σ_{k=1..5} w_k s^k``
+    (w: 5 nonnegative arrays, r: like them), about s = r: the recurrences
+    ``sh_k = (1/k) Σ_j j u_j ch_{k−j}``, ``ch_k = (1/k) Σ_j j u_j sh_{k−j}`` (all terms >= 0)."""
+    zero = jnp.zeros_like(r)
+    w = jnp.broadcast_arrays(zero, *w)
+    u = bspline.poly_taylor_terms(jnp.stack(w, -1), r) + [zero]  # U(r + σ), orders 0..6
+    sh, ch = [jnp.sinh(u[0])], [jnp.cosh(u[0])]
+    for k in range(1, 7):
+        sh.append(sum(j * u[j] * ch[k - j] for j in range(1, k + 1)) / k)
+        ch.append(sum(j * u[j] * sh[k - j] for j in range(1, k + 1)) / k)
+    return ch[6], sh[6]
 
-    def newton_step(_, carry):
-        pts, d = carry
-        q1, q2 = pick(d, 1), pick(d, 2)
-        # the points carry no gradient (envelope theorem, see extrema.chain_extrema)
-        pts = jax.lax.stop_gradient(
-            jnp.clip(pts - jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0), 0.0, h[:, None, None]))
-        return pts, jets_at(pts)
 
-    d = jets_at(inner)
-    first = pick(d, 0)
-    _, d = jax.lax.fori_loop(0, newton, newton_step, (inner, d))
-    q0, q1, q2 = pick(d, 0), pick(d, 1), pick(d, 2)
-    step = jnp.abs(jnp.where(q2 != 0, q1 / jnp.where(q2 != 0, q2, 1.0), 0.0))
-    extra = jnp.where(step <= 1e-5 * h[:, None, None], jnp.abs(q1) * step, 0.0)
-    ends = jnp.stack([jnp.zeros_like(h), h], -1)  # (6, 2)
-    end = jets.derivatives(right_jets(problem, c, ends, 2, (0, 1, 2), ref))  # (6, 2, 3 joints, 3)
-    home = problem.home[4:7]
-    right = []
-    for k in range(3):
-        sel = kind == k
-        shift = home[:, None] if k == 0 else 0.0
-        vals = jnp.concatenate(
-            [jnp.abs(first[:, :, sel] - shift), jnp.abs(q0[:, :, sel] - shift) + extra[:, :, sel],
-             jnp.abs(end[..., k] - (home if k == 0 else 0.0)).swapaxes(1, 2)], 2)  # (6, 3, ·)
-        right.append(extrema.reduce_max(vals, (0, 2)))
-    return jnp.stack(right, axis=1)
+def _taylor_remainders(wa, wp, wm, trig, r, d2):
+    """Bounds of ``|R|``, ``|R'|``, ``|R''|`` on ``|s| <= r`` of the remainders
+    ``R(s) = q(t_c + s) − Σ_{k<=5} q_k s^k`` of the right arm's axial, lift and lateral
+    joints' Taylor series about t_c. → (..., 3 joints, 3) in mm, mm/s, mm/s².
+
+    ``wa``, ``wp``, ``wm``: 5 arrays each, nonnegative majorants of the Taylor coefficients
+    1..5 about t_c of α, α + β and α − β (rad); ``trig``: upper bounds of
+    ``(|sin α|, |cos α|, |sin(α+β)|, |cos(α+β)|, |sin(α−β)|, |cos(α−β)|)`` at t_c; r like
+    them.
+
+    The joints are ``pose + D_2 f`` with f one of ``sin α``,
+    ``cos α cos β = ½[cos(α+β) + cos(α−β)]``, ``cos α sin β = ½[sin(β+α) + sin(β−α)]``
+    (SPEC §4); the pose is quintic, so R is ``D_2`` times f's remainder. With
+    ``φ = φ_c + u(s)``, ``sin φ = sin φ_c cos u + cos φ_c sin u`` and
+    ``cos φ = cos φ_c cos u − sin φ_c sin u``; the coefficients of ``cos u`` and ``sin u``
+    are at most those of ``cosh U`` and ``sinh U`` when U majorises u. So every Taylor
+    coefficient of f from order 6 on is at most that of a series M with nonnegative
+    coefficients, and ``|R^(i)(s)| <= D_2 M^(6)(r) r^{6−i}/(6−i)!`` (Taylor's theorem on M,
+    whose derivatives increase on r >= 0). All terms are nonnegative, so rounding is
+    relative; the factor ``1 + 1e-12`` covers it.
+    """
+    sa, ca, sp, cp, sm, cm = trig
+    cha, sha = _hyperbolic_jet6(wa, r)
+    chp, shp = _hyperbolic_jet6(wp, r)
+    chm, shm = _hyperbolic_jet6(wm, r)
+    m6 = jnp.stack([0.5 * (cp * chp + sp * shp + cm * chm + sm * shm),  # d_R1: cos α cos β
+                    sa * cha + ca * sha,  # d_R2: sin α
+                    0.5 * (sp * chp + cp * shp + sm * chm + cm * shm)], -1)  # d_R3: cos α sin β
+    r2 = r * r
+    r4 = r2 * r2
+    powers = jnp.stack([r4 * r2, 6.0 * r4 * r, 30.0 * r4], -1)  # 6! r^(6-i) / (6-i)!
+    return (d2 * (1.0 + 1e-12)) * m6[..., :, None] * powers[..., None, :]
+
+
+def _angle_sums(sa, ca, sb, cb):
+    """``(sin α, cos α, sin(α+β), cos(α+β), sin(α−β), cos(α−β))`` from the sines and cosines."""
+    return (sa, ca, sa * cb + ca * sb, ca * cb - sa * sb, sa * cb - ca * sb, ca * cb + sa * sb)
+
+
+def _span_majorants(c, h, ref):
+    """Per knot span, majorants valid about any point of it: ``(w_α, w_+, w_−)`` (5 arrays
+    (6, 3) of ``sup |φ^(k)|/k!``, k = 1..5, for φ = α, α+β, α−β in rad, from the series
+    re-centred at the span's middle) and bounds of the six sines and cosines of
+    :func:`_taylor_remainders` (their values at the middle plus the largest deviation)."""
+    half = 0.5 * h[:, None]
+    m = bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, 3:5], 1, 2), half)  # 6 × (6 spans, 2)
+    m = [_DEG * jnp.stack([a[:, 0], a[:, 0] + a[:, 1], a[:, 0] - a[:, 1]], -1) for a in m]
+    hp = [jnp.ones_like(half)]
+    for _ in range(5):
+        hp.append(hp[-1] * half)
+    w = [sum(math.comb(j, k) * jnp.abs(m[j]) * hp[j - k] for j in range(k, 6)) for k in range(1, 6)]
+    dev = sum(jnp.abs(m[j]) * hp[j] for j in range(1, 6))  # (6, 3): largest |φ − φ_mid|
+    _, sin_m, cos_m = ref
+    mid = _angle_sums(sin_m[:, 0], cos_m[:, 0], sin_m[:, 1], cos_m[:, 1])
+    trig = [jnp.minimum(1.0, jnp.abs(v) + dev[:, i // 2]) for i, v in enumerate(mid)]
+    return w, trig
+
+
+def _taylor_anchors(problem: DockingProblem, c, h, ref):
+    """Twice the remainder bounds, in units of the limits, of a knot span cut into
+    ``2**a`` sub-spans, at the levels ``a`` of :data:`TAYLOR_ANCHORS`. → (6 spans, anchors,
+    3 joints, 3)."""
+    w, trig = _span_majorants(c, h, ref)
+    anchors = np.asarray(TAYLOR_ANCHORS)
+    r = h[:, None] * jnp.asarray(0.5 ** (anchors + 1), h.dtype)  # (6, A)
+    col = lambda i: [a[:, i, None] for a in w]  # noqa: E731
+    rem = _taylor_remainders(col(0), col(1), col(2), [t[:, None] for t in trig], r, problem.arm_distance)
+    return 2.0 * rem / problem.limits[4:7]
+
+
+def _taylor_levels(anchors, tol, top: int):
+    """Subdivision level of each knot span: the fewest ``2**ℓ`` sub-spans for which twice the
+    remainder bound is at most ``tol`` (3 joints, 3; units of the limit; ``inf`` ignores a
+    column) for every column, at most ``top``. anchors: :func:`_taylor_anchors`. → (6,) int.
+
+    From an anchor level a, a remainder bound at level ℓ >= a is at most the anchor's
+    ``× 2^{−(6−i)(ℓ−a)}`` for the i-th derivative (the majorant's factor only shrinks with
+    r), so each anchor gives a valid level in closed form; the smallest is taken."""
+    a = np.asarray(TAYLOR_ANCHORS, np.int32)[None, :, None, None]
+    order = np.array([6, 5, 4], np.int32)  # the remainder of the i-th derivative is O(r^(6−i))
+    # ratio <= 2**e (frexp's exponent: integer work, no float64 logarithm); inf and nan
+    # ratios ask for the top level
+    ratio = anchors / tol
+    _, e = jnp.frexp(jnp.where(jnp.isfinite(ratio), jnp.maximum(ratio, 1.0), 2.0 ** 1000))
+    per = jnp.max(a + (jnp.maximum(e, 0) + order - 1) // order, axis=(2, 3))  # (6, A)
+    return jnp.minimum(jnp.min(per, axis=1), top).astype(jnp.int32)
+
+
+def _taylor_subspans(problem: DockingProblem, c, r, tc):
+    """Upper and lower bounds (B, 3 joints, 3) of the right arm's maxima on B sub-spans,
+    each of centre ``tc`` (local time in its knot span) and half-width ``r`` (B,), on the
+    span of coefficients c (B, 6 powers, 6 coords). See :func:`right_taylor_maxima`."""
+    raw = bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, 3:5], 1, 2), tc[:, None])  # 6 × (B, 2), °
+    # the jets' reference angles: pitch and yaw at t_c themselves (library sine and
+    # cosine, accurate for any angle)
+    ref = (raw[0], jnp.sin(_DEG * raw[0]), jnp.cos(_DEG * raw[0]))
+    q = right_terms(problem, c, tc[:, None], 5, (0, 1, 2), ref)  # 3 × 6 × (B, 1)
+    polys = jnp.stack([jnp.concatenate(t, -1) for t in q], 1)  # (B, 3, 6) about t_c
+    first = jnp.stack(bspline.poly_taylor_terms(polys, -r[:, None]), -1)  # about t_c − r
+    first = first.at[..., 0].add(-problem.home[4:7])
+    vals, _ = extrema.span_maxima(first, jnp.broadcast_to(2.0 * r[:, None], first.shape[:2]))
+    ang = [_DEG * jnp.stack([a[:, 0], a[:, 0] + a[:, 1], a[:, 0] - a[:, 1]], -1) for a in raw]
+    w = [jnp.abs(a) for a in ang[1:]]
+    _, sin_c, cos_c = ref
+    trig = [jnp.minimum(1.0, jnp.abs(v) + 1e-15)
+            for v in _angle_sums(sin_c[:, 0], cos_c[:, 0], sin_c[:, 1], cos_c[:, 1])]
+    rem = _taylor_remainders([a[:, 0] for a in w], [a[:, 1] for a in w], [a[:, 2] for a in w],
+                             trig, r, problem.arm_distance)  # (B, 3 joints, 3)
+    return vals + rem, vals - rem
+
+
+def _taylor_pass(problem: DockingProblem, c, h, levels):
+    """One pass of :func:`right_taylor_maxima` over a batch: every knot span k of row i cut
+    into ``2**levels[i, k]`` sub-spans (none where the level is −1); the sub-spans of all
+    rows form one queue, scored :data:`TAYLOR_ROUND` at a time in a ``lax.while_loop``
+    (so the trip count is the batch's total work, not its largest row's). → per span upper
+    bounds (n, 6, 3, 3) (0 where not cut) and per row lower bounds (n, 3, 3)."""
+    n = h.shape[0]
+    dtype = c.dtype
+    count = jnp.where(levels >= 0, jnp.left_shift(1, jnp.maximum(levels, 0)), 0).reshape(-1)  # (n·6,)
+    ends = jnp.cumsum(count)
+    total = ends[-1]
+    flat = lambda a: a.reshape((n * config.N_INTERVALS,) + a.shape[2:])  # noqa: E731
+    cf, hf = flat(c), flat(h)
+
+    def body(carry):
+        g, upper, lower = carry
+        idx = g * TAYLOR_ROUND + jnp.arange(TAYLOR_ROUND, dtype=ends.dtype)
+        valid = idx < total
+        item = jnp.minimum(jnp.searchsorted(ends, idx, side="right"), n * config.N_INTERVALS - 1)
+        k = jnp.maximum(count[item], 1)
+        j = idx - (ends[item] - k)
+        r = hf[item] / (2.0 * k.astype(dtype))
+        tc = (2.0 * j.astype(dtype) + 1.0) * r
+        up, low = _taylor_subspans(problem, cf[item], r, tc)
+        up = jnp.where(valid[:, None, None], up, 0.0)
+        low = jnp.where(valid[:, None, None], low, 0.0)
+        return g + 1, upper.at[item].max(up), lower.at[item // config.N_INTERVALS].max(low)
+
+    init = (jnp.zeros((), ends.dtype), jnp.zeros((n * config.N_INTERVALS, 3, 3), dtype),
+            jnp.zeros((n, 3, 3), dtype))
+    _, upper, lower = jax.lax.while_loop(lambda carry: carry[0] * TAYLOR_ROUND < total, body, init)
+    return upper.reshape(n, config.N_INTERVALS, 3, 3), lower
+
+
+def right_taylor_maxima(problem: DockingProblem, c, h, ref, screen: bool = False, active=None):
+    """Rigorous maxima of the right arm's axial, lift and lateral joints (travel about home,
+    |velocity|, |acceleration|) by Taylor models on sub-spans, for a batch.
+
+    c: (n, 6 spans, 6 powers, 6 coords), h: (n, 6), ref: :func:`span_angles` of each row
+    ((n, 6, 2) each); ``active`` (n,) bool: rows to score (default all; the others return
+    0). → (n, 3 joints, 3).
+
+    On a sub-span of centre t_c and half-width r, the joint is its degree-5 Taylor
+    polynomial about t_c (Taylor-mode arithmetic, :func:`right_terms`) plus a remainder
+    bounded by :func:`_taylor_remainders` (from the coefficients of pitch and yaw at t_c).
+    The polynomial's maxima come from the certified root chain of
+    :func:`dockjax.extrema.span_maxima` and the remainder bound is added; so every value
+    is an upper bound of the true maximum, above it by at most twice the remainder bound
+    (plus the chain's certified widths), and the polynomial's maximum less the remainder
+    bound is a lower bound.
+
+    Two passes (:func:`_taylor_pass`): the first cuts every span as finely as
+    :data:`TAYLOR_LOOSE` needs (:func:`_taylor_levels`); the second re-cuts, as finely as
+    :data:`TAYLOR_TIGHT` needs, only the spans that can still hold a value more than that
+    above the lower bound of a column to be made tight: with ``screen``, the columns whose
+    bounds reach within :data:`SCREEN_BAND` of the limit, else every column. A span's
+    value is the smaller of its two passes' bounds (both are upper bounds)."""
+    lim = problem.limits[4:7]
+    anchors = jax.vmap(partial(_taylor_anchors, problem))(c, h, ref)  # (n, 6, A, 3, 3)
+    loose = jax.vmap(lambda a: _taylor_levels(a, jnp.full((3, 3), TAYLOR_LOOSE, c.dtype), TAYLOR_LEVELS))(anchors)
+    if active is not None:
+        loose = jnp.where(active[:, None], loose, -1)
+    U1, lo = _taylor_pass(problem, c, h, loose)
+
+    def second(anchors, U1, lo, loose):
+        top = U1.max(axis=0)
+        if screen:
+            far = (top < (1.0 - SCREEN_BAND) * lim) | (lo > (1.0 + SCREEN_BAND) * lim)
+        else:
+            far = jnp.zeros((3, 3), bool)
+        open_ = ~far[None] & (U1 - lo[None] > TAYLOR_TIGHT * lim[None])  # (6, 3, 3)
+        tol = jnp.where(open_, TAYLOR_TIGHT, jnp.inf)
+        tight = jax.vmap(lambda a, t: _taylor_levels(a[None], t, TAYLOR_TIGHT_LEVELS)[0])(anchors, tol)
+        return jnp.where(jnp.any(open_, axis=(1, 2)) & (tight > loose), tight, -1)
+
+    levels = jax.vmap(second)(anchors, U1, lo, loose)
+    U2, _ = _taylor_pass(problem, c, h, levels)
+    U = jnp.where((levels >= 0)[..., None, None], jnp.minimum(U1, U2), U1)
+    return extrema.reduce_max(U, 1)
+
+
+def _right_columns_taylor(problem: DockingProblem, X, screen: bool, active=None):
+    """G columns 12..20 (the right arm's axial, lift and lateral joints) of the rows of X
+    (n, n_var) by :func:`right_taylor_maxima`. → (n, 9)."""
+    h, _, c = jax.vmap(partial(decode, problem))(X)
+    ref = jax.vmap(span_angles)(c, h)
+    M = right_taylor_maxima(problem, c, h, ref, screen, active)
+    return (M / problem.limits[4:7] - 1.0 + G_SAFETY).reshape(X.shape[0], -1)
 
 
 def _jerk(problem: DockingProblem, c, h, ref):
@@ -637,10 +850,10 @@ def _score(problem: DockingProblem, x, screen: bool = False):
     T = jnp.sum(h)
     ref = materialize(span_angles(c, h))
     F = jnp.stack([T, _jerk(problem, c, h, ref)])
-    if screen and problem.right_arm != "exact":
+    if screen and problem.right_arm != "taylor":
         M, need, over, spans = _maxima_screened(problem, c, h, ref)
     else:
-        M, need = _maxima(problem, c, h, ref, with_need=True)
+        M, need = _maxima(problem, c, h, ref, with_need=True, screen=screen)
         over, spans = jnp.zeros((), bool), None
     return F, _columns(problem, M), need, over, spans
 
@@ -650,22 +863,15 @@ def _columns(problem: DockingProblem, M):
     return (M / problem.limits - 1.0 + G_SAFETY).reshape(M.shape[:-2] + (-1,))
 
 
-def _limits_full(problem: DockingProblem, x):
-    """G (24,) of one candidate by the full root chain (no objectives: less to compile)."""
-    h, u, c = decode(problem, x)
-    ref = materialize(span_angles(c, h))
-    return _columns(problem, _maxima(problem, c, h, ref))
-
-
 def score(problem: DockingProblem, x):
     """Objectives and constraint values of one candidate. x: (n_var,) → F (2,), G (24,).
 
-    Every column comes from the exact root chain (no screening). In the ``"adaptive"``
-    right-arm mode this is the exact path where the candidate needs it (both paths are
-    computed: use :func:`score_batch` for populations)."""
+    Every column comes from the full root chain (no screening). In the ``"adaptive"``
+    right-arm mode the ``"taylor"`` treatment replaces the bound where the candidate needs
+    it (both are computed: use :func:`score_batch` for populations)."""
     if problem.right_arm == "adaptive":
         F, G, need, _, _ = _score(problem.with_right_arm("bound"), x)
-        _, Gx, _, _, _ = _score(problem.with_right_arm("exact"), x)
+        _, Gx, _, _, _ = _score(problem.with_right_arm("taylor"), x)
         return F, jnp.where(need, Gx, G)
     F, G, _, _, _ = _score(problem, x)
     return F, G
@@ -712,10 +918,11 @@ def _replace_rows(G, mask, rows, chunk: int):
     return G
 
 
-def _exact_path_rows(problem: DockingProblem, X):
-    """``rows`` for :func:`_replace_rows`: G by the ``"exact"`` right-arm path."""
-    exact = problem.with_right_arm("exact")
-    return lambda idx: jax.vmap(partial(_limits_full, exact), in_axes=1, out_axes=1)(X[idx].T).T
+def _taylor_rows(problem: DockingProblem, X, G, mask, screen: bool):
+    """``rows`` for :func:`_replace_rows`: the rows of G with the right arm's nonlinear
+    columns from :func:`right_taylor_maxima` (only the flagged rows are scored)."""
+    taylor = problem.with_right_arm("taylor")
+    return lambda idx: G[idx].at[:, 12:21].set(_right_columns_taylor(taylor, X[idx], screen, mask[idx]))
 
 
 def _full_chain_rows(problem: DockingProblem, spans):
@@ -735,28 +942,35 @@ KERNEL_CHUNK = 48
 """Most candidates per pass of :func:`score_batch` (its default ``chunk``)."""
 
 
-def _score_pass(problem: DockingProblem, X, screen: bool, adaptive: bool):
-    """One pass of :func:`score_batch` (bound or exact right arm): F, G (screen overflow
-    re-scored) and the adaptive mode's ``need`` flags of the rows X."""
+def _score_pass(problem: DockingProblem, X, screen: bool, taylor: bool):
+    """One pass of :func:`score_batch` (bound right arm; with ``taylor`` its nonlinear
+    columns then come from :func:`right_taylor_maxima`): F, G (screen overflow re-scored)
+    and the adaptive mode's ``need`` flags of the rows X."""
     F, G, need, over, spans = _score_plain(problem, X, screen)
     if spans is not None:
-        G = _replace_rows(G, over & ~need if adaptive else over, _full_chain_rows(problem, spans), SCREEN_CHUNK)
+        G = _replace_rows(G, over, _full_chain_rows(problem, spans), SCREEN_CHUNK)
+    if taylor:
+        G = G.at[:, 12:21].set(_right_columns_taylor(problem.with_right_arm("taylor"), X, screen))
     return F, G, need
 
 
-def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | None = None):
-    """Traceable batch scoring: X (n, n_var) → F (n, 2), G (n, 24).
+def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | None = None,
+                with_need: bool = False):
+    """Traceable batch scoring: X (n, n_var) → F (n, 2), G (n, 24) (and, ``with_need``, the
+    rows (n,) whose bound treatment may overstate by more than :data:`BOUND_TOLERANCE`).
 
     ``screen`` (default): the limit columns come from :func:`_maxima_screened` (cheap
     bounds everywhere, the exact root chain on the few spans that need it); candidates
     with more such spans than the screen's slots are re-scored by the full path.
     ``screen=False``: every span through the root chain (about 2.5× dearer; every column
-    exact to rounding).
+    exact to rounding, the right arm's as the treatment allows).
 
-    ``"adaptive"`` right arm: every candidate is scored by the bound path; those whose own
-    overstatement bound exceeds :data:`BOUND_TOLERANCE` are re-scored by the exact path
-    (see :func:`_replace_rows`), so the dear path costs only what is needed (usually
-    nothing).
+    The right arm's nonlinear columns: ``"bound"`` as the kernel computes them;
+    ``"taylor"`` from :func:`right_taylor_maxima` for every row; ``"adaptive"``: every
+    candidate is scored by the bound path, and those whose own overstatement bound
+    exceeds :data:`BOUND_TOLERANCE` get their nine columns from
+    :func:`right_taylor_maxima` (see :func:`_replace_rows`), so the dear path costs only
+    what is needed (usually nothing).
 
     The rows go through in passes (``lax.map``) of at most ``chunk`` (default
     :data:`KERNEL_CHUNK`), split evenly (padded with copies of row 0, dropped again): a
@@ -768,25 +982,27 @@ def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | No
     if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
         raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
     adaptive = problem.right_arm == "adaptive"
-    bound = problem.with_right_arm("bound" if adaptive else problem.right_arm)
+    taylor = problem.right_arm == "taylor"
+    bound = problem.with_right_arm("bound")
     n = X.shape[0]
     passes = max(1, -(-n // chunk))
     size = -(-n // passes)
     if passes == 1:
-        F, G, need = _score_pass(bound, X, screen, adaptive)
+        F, G, need = _score_pass(bound, X, screen, taylor)
     else:
         Xp = jnp.concatenate([X, jnp.broadcast_to(X[:1], (passes * size - n, X.shape[1]))])
-        out = jax.lax.map(lambda x: _score_pass(bound, x, screen, adaptive), Xp.reshape(passes, size, -1))
+        out = jax.lax.map(lambda x: _score_pass(bound, x, screen, taylor), Xp.reshape(passes, size, -1))
         F, G, need = (a.reshape((passes * size,) + a.shape[2:])[:n] for a in out)
     if adaptive:
-        G = _replace_rows(G, need, _exact_path_rows(problem, X), ADAPTIVE_CHUNK)
-    return F, G
+        G = _replace_rows(G, need, _taylor_rows(problem, X, G, need, screen), ADAPTIVE_CHUNK)
+    return (F, G, need) if with_need else (F, G)
 
 
 @partial(jax.jit, static_argnums=0)
 def _evaluate_rows(screen: bool, problem: DockingProblem, X):
-    """:func:`score_batch` for :meth:`DockingProblem.evaluate` (``screen`` first: static)."""
-    return score_batch(problem, X, screen)
+    """:func:`score_batch` for :meth:`DockingProblem.evaluate` (``screen`` first: static),
+    with the bound treatment's ``need`` flags."""
+    return score_batch(problem, X, screen, with_need=True)
 
 
 ROWS_PER_DEVICE = 256

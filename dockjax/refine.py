@@ -118,18 +118,21 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
     G (24,); differentiable everywhere the kernel is (G is piecewise smooth).
 
     Default: the full root chain, equal in value to :func:`dockjax.problem.score` except in
-    the ``"adaptive"`` right-arm mode, where the bound path is used throughout (never
-    understated, so safe to certify with; :func:`refine` re-scores its results with the
-    kernel). ``screen=True`` (not in the ``"exact"`` mode): the limits by the screen of
+    the ``"adaptive"`` and ``"taylor"`` right-arm modes, where the bound treatment is used
+    throughout (never understated, so safe to certify with, but it may overstate more;
+    the Taylor models' subdivision loop has no reverse-mode derivative; :func:`refine`
+    re-scores its results with the kernel). ``screen=True``: the limits by the screen of
     :func:`dockjax.problem._maxima_screened` without its overflow pass — columns near their
     limits exact with exact gradients (envelope theorem), the others rigorous upper bounds.
     Measured on the default problem it saves little in refinement (3.75 against 4.13 s for
     150 points × 200 steps; the backward pass dominates) and lands a hair lower in HV, so
     refinement keeps the full chain."""
+    if problem.right_arm == "taylor":
+        problem = problem.with_right_arm("bound")
     h, _, c = decode(problem, x)
     ref = materialize(span_angles(c, h))
     F = jnp.stack([jnp.sum(h), _safe_jerk(problem, c, h, ref)])
-    if screen and problem.right_arm != "exact":
+    if screen:
         M = _maxima_screened(problem, c, h, ref)[0]
     else:
         M = _maxima(problem, c, h, ref)

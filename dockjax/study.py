@@ -40,7 +40,7 @@ STUDY_RIGHT_ARM = "adaptive"
 """Right-arm treatment of the comparison's problems (see :class:`DockingProblem`) when it
 runs several presets. ``"adaptive"`` scores exactly as ``"bound"`` wherever the bound is
 within SPEC §6's tolerance — every candidate of the ``paper`` preset, where ``"auto"``
-picks ``"bound"`` — and as ``"exact"`` elsewhere; with one setting for every preset, the
+picks ``"bound"`` — and by the ``"taylor"`` treatment elsewhere; with one setting for every preset, the
 presets share every compiled program (same shapes, same static settings), which saves
 compare.py a whole set of compilations (~1 minute here). A single preset keeps its
 ``"auto"`` choice (nothing to share; ``"bound"`` compiles faster)."""

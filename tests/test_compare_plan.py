@@ -220,3 +220,19 @@ def test_python_api_returns_the_certified_trajectory_as_arrays():
     p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine=False)
     assert p.samples["position"].shape == (len(p.samples["t"]), 8)
     assert math.isclose(p.samples["t"][-1], p.T)
+
+
+def test_write_plan_labels_the_front_with_the_algorithm_that_made_it(tmp_path, monkeypatch):
+    import dataclasses
+
+    from dockjax import plots
+    from dockjax.plan import plan, write_plan
+
+    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine=False)  # as the test above
+    labels = []
+    real = plots.plot_fronts
+    monkeypatch.setattr(plots, "plot_fronts", lambda fronts, *a, **k: labels.append(list(fronts)) or real(fronts, *a, **k))
+    for algorithm, refine, want in (("nsga2", False, "nsga2"), ("mopso", True, "mopso+refine")):
+        write_plan(dataclasses.replace(p, settings={**p.settings, "algorithm": algorithm, "refine": refine}),
+                   tmp_path / algorithm)
+        assert labels[-1] == [want]

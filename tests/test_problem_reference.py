@@ -156,12 +156,12 @@ def _paper_like_config(seed):
 
 @pytest.mark.parametrize(
     ("seed", "right_arm"),
-    [("paper", "bound"), ("paper", "exact"), (0, "bound"), (2, "bound"), (1, "auto"),
+    [("paper", "bound"), ("paper", "taylor"), (0, "bound"), (2, "bound"), (1, "auto"),
      (4, "auto"), (1, "adaptive")],
 )
 def test_right_arm_modes_match_reference(seed, right_arm):
     """Every way of finding the right arm's nonlinear maxima meets SPEC §6 where it claims
-    to: "bound" on paper-sized attitude changes (tenths of a degree), "exact" anywhere."""
+    to: "bound" on paper-sized attitude changes (tenths of a degree), "taylor" anywhere."""
     rng = np.random.default_rng(2000 + (0 if seed == "paper" else seed + 1))
     cfg = dict(DEFAULT) if seed == "paper" else _paper_like_config(seed)
     p = DockingProblem(**cfg, right_arm=right_arm)
@@ -201,7 +201,7 @@ def test_jerk_nodes_follow_the_attitude_range_and_reach_1e9():
     kw = dict(start=start, goal=goal, arm_distance=2800.0, interval_bounds=(0.1, 100.0),
               travel=(600.0, 150.0, 150.0, 15.0))
     p = DockingProblem(**kw)
-    assert p.jerk_nodes == 12 and p.with_right_arm("exact").jerk_nodes == 12
+    assert p.jerk_nodes == 12 and p.with_right_arm("taylor").jerk_nodes == 12
     lo, hi = p.lower[6:], p.upper[6:]
     fractions = np.zeros(30)
     fractions[2:4] = (0.75, 1.0)

@@ -27,15 +27,15 @@ to ``jit`` as a pytree (its arrays are traced, its shape information static).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
 from types import ModuleType
-from typing import Any, Callable
+from typing import Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import pareto
+from ..pytrees import pytree_dataclass, static
 
 __all__ = [
     "pytree_dataclass",
@@ -48,16 +48,6 @@ __all__ = [
     "ZDT1",
     "hypervolume_2d",
 ]
-
-
-def pytree_dataclass(cls):
-    """A frozen dataclass registered as a JAX pytree (fields marked :func:`static` are aux data)."""
-    return jax.tree_util.register_dataclass(dataclass(frozen=True)(cls))
-
-
-def static(default: Any) -> Any:
-    """A static (non-traced) pytree dataclass field, e.g. the population size."""
-    return field(default=default, metadata=dict(static=True))
 
 
 @pytree_dataclass
