@@ -51,7 +51,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.repeats < 1 or min(args.sizes) < 1:
         ap.error("--sizes and --repeats must be >= 1")
-    from dockjax.cli import claim_devices
+    from dockjax.runtime import claim_devices
 
     try:
         devices = claim_devices(args.devices)  # before any JAX computation

@@ -1,14 +1,14 @@
-"""Gradient refinement and the best-known front (issue 6), in one process.
+"""Gradient refinement and the best-known front, in one process.
 
     python benchmarks/bench_refine.py [--steps 200] [--repeats 3]
 
-1. The best-known front of the default problem (``dockjax.study.BEST_KNOWN`` settings),
+1. The best-known front of the default problem (``dockjax.config.BEST_KNOWN`` settings),
    wall time with compile included (it runs first, on a cold process).
 2. Refining the final population (150 points) of one IMOCS run (population 150,
    100 iterations): median wall time over ``--repeats`` after compile (same compiled shape
    as step 1), and the hypervolume of the front before and after.
 3. The hypervolume of the best-known front beside them (reference point of
-   ``dockjax.study.hv_reference``).
+   ``dockjax.comparison.hv_reference``).
 """
 
 from __future__ import annotations
@@ -18,10 +18,12 @@ import time
 
 import numpy as np
 
-from dockjax.algorithms import optimize
+from dockjax.comparison import best_known_cached, hv_reference
+from dockjax.config import BEST_KNOWN
 from dockjax.metrics import hypervolume_numpy
+from dockjax.optimize import optimize
+from dockjax.problem import make_problem
 from dockjax.refine import refine
-from dockjax.study import BEST_KNOWN, best_known_cached, hv_reference, make_problem
 
 
 def main() -> None:

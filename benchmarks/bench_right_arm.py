@@ -37,7 +37,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.n < 1 or args.repeats < 1:
         ap.error("--n and --repeats must be >= 1")
-    from dockjax.cli import claim_devices
+    from dockjax.runtime import claim_devices
 
     try:
         devices = claim_devices(args.devices)  # before any JAX computation

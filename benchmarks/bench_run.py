@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from dockjax import DockingProblem
-from dockjax.algorithms import optimize
+from dockjax.optimize import optimize
 
 
 def main() -> None:
@@ -35,7 +35,7 @@ def main() -> None:
             ap.error(f"--{name} must be >= {4 if name == 'pop' else 1}, got {getattr(args, name)}")
     if args.pymoo_runs < 0:
         ap.error(f"--pymoo-runs must be >= 0, got {args.pymoo_runs}")
-    from dockjax.cli import claim_devices
+    from dockjax.runtime import claim_devices
 
     try:
         devices = claim_devices(args.devices)  # before any JAX computation

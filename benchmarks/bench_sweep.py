@@ -25,7 +25,8 @@ import time
 
 import numpy as np
 
-from dockjax.sweep import ChunkSpec, _nondominated_2d, run_chunk
+from dockjax.metrics import nondominated_points
+from dockjax.sweep import ChunkSpec, run_chunk
 
 
 def main() -> None:
@@ -39,7 +40,7 @@ def main() -> None:
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved timed rounds")
     args = ap.parse_args()
-    from dockjax.cli import claim_devices
+    from dockjax.runtime import claim_devices
 
     try:
         devices = claim_devices(args.devices)  # before any JAX computation
@@ -58,7 +59,7 @@ def main() -> None:
     t0 = time.perf_counter()
     pilot = run_chunk(spec(10_000), devices=devices)  # compiles; the indicators' reference front
     pilot_s = time.perf_counter() - t0
-    front = _nondominated_2d(pilot["front_F"])
+    front = nondominated_points(pilot["front_F"])
     ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": 1.1}
     layouts = {"one device": 1, f"{devices} devices": devices} if devices > 1 else {"one device": 1}
     times = {k: [] for k in layouts}
@@ -91,7 +92,7 @@ def main() -> None:
             print("pymoo not installed: pip install 'dockjax[bench]'")
             return
         from dockjax.interop import as_pymoo_problem
-        from dockjax.study import make_problem
+        from dockjax.problem import make_problem
 
         pp = as_pymoo_problem(make_problem(args.preset))
         pp.evaluate(np.tile(pp.xl, (args.pop, 1)))  # compile the kernel for this shape

@@ -1,11 +1,12 @@
 """dockjax: JAX-accelerated batch multi-objective trajectory planning for a dual-arm
 cabin-docking robot (quintic B-splines, IMOCS and its peers).
 
-The public entry point is :class:`DockingProblem`; see the README for the study scripts.
+The public entry point is :class:`DockingProblem`; :func:`dockjax.optimize.optimize` runs
+the optimisers, :mod:`dockjax.plan` makes one certified trajectory, and the command line
+``dockjax`` (:mod:`dockjax.cli`) runs studies and plans. See the README.
 """
 
 from .problem import DockingProblem
-
-__version__ = "0.1.0"
+from .version import __version__
 
 __all__ = ["DockingProblem", "__version__"]

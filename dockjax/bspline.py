@@ -1,4 +1,4 @@
-"""Quintic clamped B-spline trajectories (paper §3.2, Eqs. 16–23; SPEC §2).
+"""Quintic clamped B-spline trajectories (paper §3.2, Eqs. 16–23; conventions §2).
 
 Everything here is a pure ``jax.numpy`` function of the knots and control points, with
 static shapes, so it jits and vmaps. The knot vector is built from the six intervals
@@ -64,7 +64,7 @@ def control_points(start, goal, interior):
 
 
 def line_control_points(start, goal):
-    """Interior points ``d_3..d_7`` evenly spaced on the segment start→goal (SPEC §3). (5, d)."""
+    """Interior points ``d_3..d_7`` evenly spaced on the segment start→goal (conventions §3). (5, d)."""
     start, goal = jnp.asarray(start), jnp.asarray(goal)
     s = jnp.arange(1, 6, dtype=start.dtype)[:, None] / 6.0
     return start + s * (goal - start)

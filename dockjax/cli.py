@@ -1,82 +1,331 @@
-"""Console entry points (tyro). Each parses its arguments, validates them before any
-compilation, then calls the library.
+"""The command line: ``dockjax sweep | compare | plan | demo`` (tyro), in one module.
 
-The CLIs (not the library) turn on JAX's persistent compilation cache, in
-``$DOCKJAX_CACHE`` or ``~/.cache/dockjax/jax``, so a second run of the same shapes skips
-compilation.
+Each subcommand is a frozen dataclass of options (defaults from :mod:`dockjax.config`) and a
+function that validates them before any compilation (bad input: one line on stderr, exit
+code 2, nothing written), then calls the library. The scripts in ``experiments/`` are thin
+wrappers: ``python experiments/sweep.py ARGS`` is ``dockjax sweep ARGS``.
+
+The command lines (not the library) turn on JAX's persistent compilation cache and ask
+for one CPU device per usable core (:mod:`dockjax.runtime`). Each subcommand imports the
+part of the library it runs, so that ``dockjax plan`` does not load the study machinery.
 """
 
 from __future__ import annotations
 
-import os
+import math
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Literal, Sequence
 
 import numpy as np
+import tyro
 
-__all__ = ["enable_compilation_cache", "usable_cores", "use_cpu_devices", "claim_devices", "DemoArgs", "demo", "demo_main", "PlanArgs", "plan_cmd", "main"]
+from . import config
+from .runtime import claim_devices, enable_compilation_cache, usable_cores, use_cpu_devices
+
+__all__ = ["SweepArgs", "CompareArgs", "PlanArgs", "DemoArgs", "sweep", "compare", "plan", "demo", "main",
+           "demo_main"]
+
+Algorithm = Literal["imocs", "mocs", "nsga2", "mopso"]
+Preset = Literal["paper", "wide"]
+Pose = tuple[float, float, float, float, float, float]
 
 
-def enable_compilation_cache() -> None:
-    """Use JAX's persistent compilation cache (CLIs only; the library never flips config)."""
-    import jax
+def _error(message: str) -> int:
+    print(f"error: {message}", file=sys.stderr)
+    return 2
 
-    path = Path(os.environ.get("DOCKJAX_CACHE", Path.home() / ".cache" / "dockjax" / "jax"))
+
+# -------------------------------------------------------------------------------- sweep
+@dataclass(frozen=True)
+class SweepArgs:
+    """Large hyper-parameter sweeps that never lose work: every finished chunk of runs is saved atomically in
+    --out, and re-running the same command after an interruption resumes where it stopped. Writes runs.csv
+    (one row per run), summary.csv, figures. See docs/cli.md for the file layout."""
+
+    rho: tuple[float, ...] = config.SWEEP_RHO
+    """Grid of the Bernoulli-map parameter ρ, each in (0, 1). IMOCS only; ignored (one value) for mocs, nsga2, mopso."""
+    alpha_max: tuple[float, ...] = config.SWEEP_ALPHA_MAX
+    """Grid of the maximum step α_max, each > 0. IMOCS only; ignored (one value) for mocs, nsga2, mopso."""
+    pop: tuple[int, ...] = (config.POP_SIZE,)
+    """Population size(s), each >= 4 (one compilation per size)."""
+    seeds: int = config.SWEEP_SEEDS
+    """Runs per setting: seeds 0 .. N-1 (the same seeds for every setting)."""
+    iters: int = config.SWEEP_ITERS
+    """Iterations per run."""
+    algorithm: Algorithm = "imocs"
+    """Optimiser. ρ/α_max apply to IMOCS only; for the others the grid is a single setting."""
+    preset: Preset = "paper"
+    """Problem preset: paper (h in [3.5, 10] s) or wide (h in [0.5, 10] s)."""
+    refine_steps: int = 0
+    """Memetic finish: polish every run's final population with this many gradient-refinement steps
+    (dockjax.refine; the algorithm column then reads e.g. imocs+refine). 0: off."""
+    out: Path = Path("results/sweep")
+    """Results folder (created). Re-run the same command on it to resume; a folder holding a different
+    configuration is refused."""
+    chunk: int = config.SWEEP_CHUNK
+    """Maximum runs per compiled call (part of the configuration: changing it refuses to resume)."""
+    reference_front: Path | None = None
+    """Best-known front (.npz with key 'front', or .csv with columns T, jerk) to score against; default: a
+    deterministic pilot computed at sweep start."""
+    backend: Literal["local", "dask"] = "local"
+    """local: chunks run in this process (no service needed); dask: a Dask cluster."""
+    scheduler: str | None = None
+    """Dask scheduler address (e.g. tcp://host:8786); default: start a LocalCluster."""
+    workers: int = 2
+    """Workers of the LocalCluster started for --backend dask without --scheduler."""
+    dask_processes: bool = False
+    """LocalCluster workers as processes (each compiles) instead of threads (shared compile)."""
+    top: int = 10
+    """Rows of the summary table printed (the full table is in summary.csv)."""
+    progress: bool = True
+    """Show a progress bar (runs done, runs/s, ETA) on stderr."""
+    devices: int | None = None
+    """CPU devices the runs of a chunk are sharded over (results are identical for any count; see
+    docs/performance.md for the speed-up). Default: one per usable core. Not part of the configuration."""
+
+
+def sweep(args: SweepArgs) -> int:
+    """Validate (exit 2 before any compilation, without leaving a folder behind), run the
+    missing chunks, report."""
+    from .sweep import ConfigError, make_config, prepare_folder, remove_created, report, run_sweep
+
+    errors = [f"{name} must be >= 1, got {v}" for name, v in (("--workers", args.workers), ("--top", args.top))
+              if v < 1]
+    if args.scheduler is not None and args.backend != "dask":
+        errors.append("--scheduler needs --backend dask")
+    if args.backend == "dask":
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            errors.append("--backend dask needs Dask distributed: pip install 'dockjax[distributed]'")
     try:
-        path.mkdir(parents=True, exist_ok=True)
-        jax.config.update("jax_compilation_cache_dir", str(path))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    except OSError:  # read-only home: run without the cache
-        pass
-
-
-def usable_cores() -> int:
-    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+        claim_devices(args.devices)  # before any JAX computation
+    except ValueError as exc:
+        return _error(str(exc))
+    created: list[Path] = []
     try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - macOS, Windows
-        return os.cpu_count() or 1
-
-
-def use_cpu_devices(n: int) -> int:
-    """Ask JAX for ``n`` CPU devices (CLIs only; must run before the process's first JAX
-    computation). Runs batched by :func:`dockjax.algorithms.optimize`, and the rows of
-    :meth:`dockjax.DockingProblem.evaluate`, are then shared out over them
-    (:mod:`dockjax.devices`): on this 2-core CPU two devices give about twice the
-    throughput of one device with XLA's intra-op threads (README, Performance). Returns the number of CPU devices JAX
-    has: unchanged if its backend was already initialised (e.g. a CLI's ``main`` called
-    twice in one process)."""
-    import jax
-
+        try:
+            cfg, front = make_config(rho=args.rho, alpha_max=args.alpha_max, pop=args.pop, seeds=args.seeds,
+                                     iters=args.iters, algorithm=args.algorithm, preset=args.preset,
+                                     refine_steps=args.refine_steps, chunk=args.chunk,
+                                     reference_front=args.reference_front)
+        except ConfigError as exc:
+            raise ConfigError("; ".join([str(exc), *errors])) from None
+        if errors:
+            raise ConfigError("; ".join(errors))
+        created = prepare_folder(args.out, cfg)
+    except ConfigError as exc:
+        return _error(str(exc))
+    if not cfg.has_grid and (args.rho != SweepArgs.rho or args.alpha_max != SweepArgs.alpha_max):
+        print(f"note: --rho and --alpha-max apply to IMOCS only; {cfg.algorithm} runs one setting per population size")
+    enable_compilation_cache()
+    t0 = time.perf_counter()
     try:
-        jax.config.update("jax_num_cpu_devices", int(n))
-    except RuntimeError:  # the backend exists already
-        pass
-    return len(jax.devices("cpu"))
-
-
-def claim_devices(devices: int | None) -> int:
-    """A CLI's ``--devices`` (None: one per usable core): ask JAX for that many CPU devices
-    (call before the process's first JAX computation). → the count JAX has.
-
-    Raises ValueError, naming the option, for anything but an integer >= 1; notes on stderr
-    when JAX's backend already had another count (e.g. a CLI's ``main`` called twice)."""
-    if devices is not None and (isinstance(devices, bool) or not isinstance(devices, int) or devices < 1):
-        raise ValueError(f"--devices must be >= 1, got {devices!r}")
-    have = use_cpu_devices(devices or usable_cores())
-    if devices is not None and have != devices:
-        print(f"note: JAX's CPU backend was already initialised with {have} device(s); using them",
+        run_sweep(cfg, args.out, front=front, backend=args.backend, scheduler=args.scheduler,
+                  workers=args.workers, dask_processes=args.dask_processes, progress=args.progress)
+    except ConfigError as exc:  # e.g. an unreachable scheduler; nothing was computed
+        remove_created(created)
+        return _error(str(exc))
+    except KeyboardInterrupt:
+        print(f"\ninterrupted: finished chunks are saved in {args.out / 'chunks'}; re-run the same command to resume",
               file=sys.stderr)
-    return have
+        return 130
+    except RuntimeError as exc:
+        if created and not any((Path(args.out) / "chunks").glob("chunk-*.npz")):
+            remove_created(created)
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    report(args.out, top=args.top)
+    print(f"total {time.perf_counter() - t0:.1f} s")
+    return 0
 
 
+# ------------------------------------------------------------------------------ compare
+@dataclass(frozen=True)
+class CompareArgs:
+    """Reproduce the paper's comparison (§5) with statistics: the algorithms × seeds on each preset, indicators
+    against the best-known front, rank-sum tests against IMOCS, Table 3 and Table 4 analogues and the figures,
+    into --out/<preset>/."""
+
+    out: Path = Path("results/compare")
+    """Results folder (created; one sub-folder per preset)."""
+    seeds: int = config.N_SEEDS
+    """Runs per algorithm (seeds 0 .. seeds-1)."""
+    pop: int = config.POP_SIZE
+    """Population size."""
+    iters: int = config.N_ITER
+    """Iterations per run."""
+    presets: tuple[Preset, ...] = tuple(config.PRESETS)
+    """Problem presets to run."""
+    algorithms: tuple[Algorithm, ...] = ("nsga2", "mopso", "mocs", "imocs")
+    """Algorithms to compare (IMOCS is the baseline of the rank-sum tests)."""
+    refine_steps: int = config.MEMETIC_STEPS
+    """Gradient-refinement steps of the "IMOCS + refine" rows (every IMOCS run's final population polished by
+    dockjax.refine); 0 leaves them out."""
+    best_known: bool = True
+    """Use the best-known front (ε-constraint sweep with gradient refinement, computed from the problem alone;
+    cached in <out>/<preset>/best_known.npz) as the indicators' reference front; --no-best-known uses the
+    union of the algorithms' final sets instead."""
+    best_known_points: int = config.BEST_KNOWN["n_points"]
+    """Time caps of the best-known front's ε-constraint sweep (>= 2)."""
+    best_known_steps: int = config.BEST_KNOWN["steps"]
+    """Refinement steps per time cap of the best-known front."""
+    devices: int | None = None
+    """CPU devices the work is shared over (the runs are bit-identical for any count, the refinement's scores
+    equal to rounding). Default: one per usable core."""
+
+
+def compare(args: CompareArgs) -> int:
+    """Validate, run every preset's study, write its files."""
+    errors = [f"--{name} must be >= {lo}, got {v}" for name, v, lo in (
+        ("seeds", args.seeds, 1), ("pop", args.pop, 4), ("iters", args.iters, 1),
+        ("refine-steps", args.refine_steps, 0)) if v < lo]
+    if not args.presets:
+        errors.append("--presets must name at least one preset")
+    if not args.algorithms:
+        errors.append("--algorithms must name at least one algorithm")
+    if args.best_known and args.best_known_points < 2:
+        errors.append(f"--best-known-points must be >= 2, got {args.best_known_points}")
+    if args.best_known and args.best_known_steps < 1:
+        errors.append(f"--best-known-steps must be >= 1, got {args.best_known_steps}")
+    if args.devices is not None and args.devices < 1:
+        errors.append(f"--devices must be >= 1, got {args.devices}")
+    if not errors:
+        created = not args.out.exists()
+        try:
+            args.out.mkdir(parents=True, exist_ok=True)
+            probe = args.out / ".write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as exc:
+            errors.append(f"--out {args.out} cannot be written: {exc}")
+            if created and args.out.is_dir() and not any(args.out.iterdir()):
+                args.out.rmdir()
+    if errors:
+        return _error("; ".join(errors))
+    claim_devices(args.devices)  # before any JAX computation: each device runs its share of the runs
+    from .comparison import best_known_cached, refine_rows, run_study, study_right_arm, summary_table, write_study
+    from .problem import make_problem
+
+    enable_compilation_cache()
+    t0 = time.perf_counter()
+    # one right-arm setting and one refinement shape for everything: shared compilations
+    right_arm = study_right_arm(args.presets)
+    rows = refine_rows(args.seeds * args.pop, args.best_known_points)
+    for preset in args.presets:
+        best = None
+        if args.best_known:
+            (args.out / preset).mkdir(parents=True, exist_ok=True)
+            best = best_known_cached(make_problem(preset, right_arm), args.out / preset / "best_known.npz",
+                                     log=lambda m, p=preset: print(f"[{p}] {m}"),
+                                     n_points=args.best_known_points, steps=args.best_known_steps,
+                                     rows=rows)
+        study = run_study(preset, algorithms=args.algorithms, seeds=range(args.seeds),
+                          pop_size=args.pop, n_iter=args.iters, refine_steps=args.refine_steps,
+                          best_known=best, right_arm=right_arm, refine_rows=rows)
+        t1 = time.perf_counter()
+        files = write_study(study, args.out)
+        print(f"[{preset}] reference front: {study.reference_description}")
+        for row in summary_table(study):
+            print(f"[{preset}] {row['algorithm']:>12}: HV {row['HV_median']:.4f} (IQR {row['HV_iqr']:.4f}, "
+                  f"{100 * row['HV_fraction_median']:.2f} % of the reference's), "
+                  f"IGD {row['IGD_median']:.4f}, GD {row['GD_median']:.5f}, SP {row['SP_median']:.5f}, "
+                  f"ONVG {row['ONVG_median']:.0f}")
+        print(f"[{preset}] wrote {len(files)} files to {args.out / preset} in {time.perf_counter() - t1:.1f} s")
+    print(f"wall time: {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+# --------------------------------------------------------------------------------- plan
+@dataclass(frozen=True)
+class PlanArgs:
+    """Plan one certified docking trajectory and write trajectory.csv, summary.json, front.png and trajectory.png
+    into --out. Exit codes: 0 planned, 1 no trajectory meets the limits (the limit is named), 2 bad input."""
+
+    start: Pose = config.START
+    """Measured cabin pose x y z [mm] pitch yaw roll [deg]."""
+    goal: Pose = config.GOAL
+    """Docking pose x y z [mm] pitch yaw roll [deg]."""
+    limits: Path | None = None
+    """TOML or JSON file overriding travel, velocity, acceleration (4 or 8 numbers) and home (8)."""
+    arm_distance: float = config.ARM_DISTANCE
+    """Distance D2 between the arm ends [mm]."""
+    interval_bounds: tuple[float, float] = config.INTERVAL_BOUNDS
+    """Bounds of each of the six knot intervals [s]."""
+    select: Literal["compromise", "time", "smooth"] = "compromise"
+    """Which point of the front (paper Table 4 types)."""
+    weights: tuple[float, float] | None = None
+    """Weights (w_T, w_jerk) of Eq. 26; overrides --select."""
+    rate: float = config.RATE
+    """Servo rate of the CSV [Hz]."""
+    pop: int = config.POP_SIZE
+    """Optimiser population."""
+    iters: int = config.N_ITER
+    """Optimiser iterations."""
+    seed: int = 0
+    """Random seed."""
+    refine_steps: int = config.PLAN_REFINE_STEPS
+    """Steps of gradient refinement (dockjax.refine) polishing the optimiser's front before the choice; 0: none."""
+    out: Path = Path("plan")
+    """Output folder."""
+    devices: int | None = None
+    """CPU devices the work is shared over (the run is the same for any count, the refinement's scores equal to
+    rounding). Default: one per usable core."""
+
+
+def plan(args: PlanArgs) -> int:
+    """Validate, plan, certify, write."""
+    from . import select
+    from .plan import PlanError, load_limits, write_plan
+    from .plan import plan as make_plan
+    from .problem import DockingProblem
+
+    for name in ("start", "goal"):
+        if not all(math.isfinite(v) for v in getattr(args, name)):
+            return _error(f"--{name} must be six finite numbers, got {list(getattr(args, name))}")
+    if not (math.isfinite(args.rate) and args.rate > 0):
+        return _error(f"--rate must be > 0, got {args.rate}")
+    if args.pop < 4 or args.iters < 1:
+        return _error(f"--pop must be >= 4 and --iters >= 1, got {args.pop} and {args.iters}")
+    if args.refine_steps < 0:
+        return _error(f"--refine-steps must be >= 0, got {args.refine_steps}")
+    weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
+    try:
+        claim_devices(args.devices)  # before any JAX computation (DockingProblem computes)
+        select.check_weights(weights, 2)
+        extra = load_limits(args.limits) if args.limits is not None else {}
+        problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
+                                 interval_bounds=args.interval_bounds, **extra)
+    except ValueError as exc:
+        return _error(str(exc))
+    if args.out.exists() and not args.out.is_dir():
+        return _error(f"--out {args.out} exists and is not a folder")
+    enable_compilation_cache()
+    try:
+        p = make_plan(problem, weights=weights, rate=args.rate, pop_size=args.pop, n_iter=args.iters,
+                      seed=args.seed, refine_steps=args.refine_steps)
+    except PlanError as exc:
+        print(f"no plan: {exc}", file=sys.stderr)
+        return 1
+    try:
+        files = write_plan(p, args.out)
+    except OSError as exc:
+        return _error(f"--out {args.out} cannot be written: {exc}")
+    print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g}; every limit certified at {args.rate:g} Hz "
+          f"and by the kernel's rigorous per-span maxima")
+    for f in files:
+        print(f"  wrote {f}")
+    return 0
+
+
+# --------------------------------------------------------------------------------- demo
 @dataclass(frozen=True)
 class DemoArgs:
-    """Score a random population of the paper's docking problem in one compiled call and
-    print the best feasible candidates (the non-dominated ones)."""
+    """Score a random population of the paper's docking problem in one compiled call and print the best feasible
+    candidates (the non-dominated ones)."""
 
     n: int = 100_000
     """Population size (candidates drawn uniformly in the decision box)."""
@@ -89,17 +338,15 @@ class DemoArgs:
 
 
 def demo(args: DemoArgs) -> int:
+    """Score, print the feasible non-dominated candidates."""
     if args.n < 1:
-        print(f"error: --n must be >= 1, got {args.n}", file=sys.stderr)
-        return 2
+        return _error(f"--n must be >= 1, got {args.n}")
     if args.top < 1:
-        print(f"error: --top must be >= 1, got {args.top}", file=sys.stderr)
-        return 2
+        return _error(f"--top must be >= 1, got {args.top}")
     use_cpu_devices(usable_cores())  # before any JAX computation: the rows are shared out
     enable_compilation_cache()
-    import jax
-
-    from . import DockingProblem, pareto
+    from .metrics import nondominated_points
+    from .problem import DockingProblem
 
     problem = DockingProblem()
     rng = np.random.default_rng(args.seed)
@@ -118,11 +365,7 @@ def demo(args: DemoArgs) -> int:
         worst = np.argmax(np.mean(G > 0, axis=0))
         print(f"no feasible candidate; most often violated column: {worst}")
         return 0
-    Ff = F[feasible]
-    with jax.enable_x64(True):
-        rank = np.asarray(pareto.nondominated_rank_2d(Ff, np.zeros(len(Ff))))
-    front = Ff[rank == 0]
-    front = front[np.argsort(front[:, 0])]
+    front = nondominated_points(F[feasible])
     pick = np.unique(np.linspace(0, len(front) - 1, min(args.top, len(front))).round().astype(int))
     print(f"non-dominated feasible candidates: {len(front)}; showing {len(pick)}")
     print(f"{'T [s]':>10}  {'jerk':>10}")
@@ -131,101 +374,26 @@ def demo(args: DemoArgs) -> int:
     return 0
 
 
+# ------------------------------------------------------------------------------ dispatch
+COMMANDS = {"sweep": (SweepArgs, sweep), "compare": (CompareArgs, compare), "plan": (PlanArgs, plan),
+            "demo": (DemoArgs, demo)}
+"""Subcommand → (options, function)."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``dockjax <subcommand> [options]``; returns the exit code (the console script exits
+    with it)."""
+    args = tyro.extras.subcommand_cli_from_dict({name: opts for name, (opts, _) in COMMANDS.items()},
+                                                args=None if argv is None else list(argv), prog="dockjax")
+    run = next(fn for opts, fn in COMMANDS.values() if isinstance(args, opts))
+    return run(args)
+
+
+def console() -> None:
+    """The ``dockjax`` console script."""
+    sys.exit(main())
+
+
 def demo_main() -> None:
-    import tyro
-
-    sys.exit(demo(tyro.cli(DemoArgs)))
-
-
-Pose = tuple[float, float, float, float, float, float]
-
-
-@dataclass(frozen=True)
-class PlanArgs:
-    """Plan one certified docking trajectory and write trajectory.csv, summary.json,
-    front.png and trajectory.png into --out. Exit codes: 0 planned, 1 no trajectory meets
-    the limits (the limit is named), 2 bad input."""
-
-    start: Pose = (775.0, -35.0, -1315.0, 0.2, -0.2, 190.0)
-    """Measured cabin pose x y z [mm] pitch yaw roll [deg]."""
-    goal: Pose = (745.0, -5.0, -1515.0, 0.0, 0.0, 180.0)
-    """Docking pose x y z [mm] pitch yaw roll [deg]."""
-    limits: Path | None = None
-    """TOML or JSON file overriding travel, velocity, acceleration (4 or 8 numbers) and home (8)."""
-    arm_distance: float = 2000.0
-    """Distance D2 between the arm ends [mm]."""
-    interval_bounds: tuple[float, float] = (3.5, 10.0)
-    """Bounds of each of the six knot intervals [s]."""
-    select: Literal["compromise", "time", "smooth"] = "compromise"
-    """Which point of the front (paper Table 4 types)."""
-    weights: tuple[float, float] | None = None
-    """Weights (w_T, w_jerk) of Eq. 26; overrides --select."""
-    rate: float = 1000.0
-    """Servo rate of the CSV [Hz]."""
-    pop: int = 150
-    """Optimiser population."""
-    iters: int = 100
-    """Optimiser iterations."""
-    seed: int = 0
-    """Random seed."""
-    refine: bool = True
-    """Polish the optimiser's front with gradient refinement (dockjax.refine) before choosing."""
-    out: Path = Path("plan")
-    """Output folder."""
-    devices: int | None = None
-    """CPU devices the work is shared over (the run is the same for any count, the
-    refinement's scores equal to rounding). Default: one per usable core."""
-
-
-def plan_cmd(args: PlanArgs) -> int:
-    import math
-
-    from . import DockingProblem, select
-    from .plan import PlanError, load_limits, plan, write_plan
-
-    def bad(msg: str) -> int:
-        print(f"error: {msg}", file=sys.stderr)
-        return 2
-
-    for name in ("start", "goal"):
-        if not all(math.isfinite(v) for v in getattr(args, name)):
-            return bad(f"--{name} must be six finite numbers, got {list(getattr(args, name))}")
-    if not (math.isfinite(args.rate) and args.rate > 0):
-        return bad(f"--rate must be > 0, got {args.rate}")
-    if args.pop < 4 or args.iters < 1:
-        return bad(f"--pop must be >= 4 and --iters >= 1, got {args.pop} and {args.iters}")
-    weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
-    try:
-        claim_devices(args.devices)  # before any JAX computation (DockingProblem computes)
-        select.check_weights(weights, 2)
-        extra = load_limits(args.limits) if args.limits is not None else {}
-        problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
-                                 interval_bounds=args.interval_bounds, **extra)
-    except ValueError as exc:
-        return bad(str(exc))
-    if args.out.exists() and not args.out.is_dir():
-        return bad(f"--out {args.out} exists and is not a folder")
-    enable_compilation_cache()
-    try:
-        p = plan(problem, weights=weights, rate=args.rate, pop_size=args.pop, n_iter=args.iters,
-                 seed=args.seed, refine=args.refine)
-    except PlanError as exc:
-        print(f"no plan: {exc}", file=sys.stderr)
-        return 1
-    try:
-        files = write_plan(p, args.out)
-    except OSError as exc:
-        return bad(f"--out {args.out} cannot be written: {exc}")
-    print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g}; every limit certified at {args.rate:g} Hz "
-          f"and at the exact extrema per knot span")
-    for f in files:
-        print(f"  wrote {f}")
-    return 0
-
-
-def main() -> None:
-    """``dockjax plan ...`` / ``dockjax demo ...``."""
-    import tyro
-
-    cmd = tyro.extras.subcommand_cli_from_dict({"plan": PlanArgs, "demo": DemoArgs})
-    sys.exit(plan_cmd(cmd) if isinstance(cmd, PlanArgs) else demo(cmd))
+    """The ``dockjax-demo`` console script: ``dockjax demo``."""
+    sys.exit(main(["demo", *sys.argv[1:]]))

@@ -1,34 +1,39 @@
-"""Defaults of the paper and of ``SPEC.md``, written once.
+"""Defaults of the paper and of ``docs/conventions.md``, written once.
 
 Units everywhere: seconds, millimetres, degrees.
 
-* Poses ``[x, y, z, pitch α, yaw β, roll γ]`` (SPEC §1, paper Eq. 34; the goal's Z sign
-  is corrected to -1515 as SPEC §1 explains).
-* Joint order (SPEC §4): ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``; within one
+* Poses ``[x, y, z, pitch α, yaw β, roll γ]`` (conventions §1, paper Eq. 34; the goal's Z sign
+  is corrected to -1515 as conventions §1 explains).
+* Joint order (conventions §4): ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``; within one
   arm: axial (task Z), lift (task Y), lateral (task X), roll.
-* Limits (paper Table 2, SPEC §6) are given per arm joint in that order and apply to
+* Limits (paper Table 2, conventions §6) are given per arm joint in that order and apply to
   both arms.
 """
 
 from __future__ import annotations
 
+import math
+
+DEG = math.pi / 180.0
+"""Degrees to radians (angles are degrees everywhere but inside trigonometric calls)."""
+
 START: tuple[float, ...] = (775.0, -35.0, -1315.0, 0.2, -0.2, 190.0)
 """Start pose ``P_o`` (paper Eq. 34)."""
 
 GOAL: tuple[float, ...] = (745.0, -5.0, -1515.0, 0.0, 0.0, 180.0)
-"""Goal pose ``P_e`` (paper Eq. 34, Z sign corrected per SPEC §1)."""
+"""Goal pose ``P_e`` (paper Eq. 34, Z sign corrected per conventions §1)."""
 
 ARM_DISTANCE: float = 2000.0
-"""Distance ``D_2`` between the two arm ends in mm (SPEC §4; the paper gives none)."""
+"""Distance ``D_2`` between the two arm ends in mm (conventions §4; the paper gives none)."""
 
 INTERVAL_BOUNDS: tuple[float, float] = (3.5, 10.0)
-"""Bounds of each knot interval ``h_k`` in s (SPEC §3)."""
+"""Bounds of each knot interval ``h_k`` in s (conventions §3)."""
 
 MARGIN: float = 0.1
-"""Relative margin ``m_k = 0.1 |Δ_k|`` of the control-point box (SPEC §3)."""
+"""Relative margin ``m_k = 0.1 |Δ_k|`` of the control-point box (conventions §3)."""
 
 ZERO_MOVE_MARGIN: tuple[float, ...] = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)
-"""Box half-margin where ``Δ_k = 0``: 1 mm for positions, 0.01° for angles (SPEC §3)."""
+"""Box half-margin where ``Δ_k = 0``: 1 mm for positions, 0.01° for angles (conventions §3)."""
 
 # Per arm joint, in the order (axial d1 / task Z, lift d2 / task Y, lateral d3 / task X, roll θ).
 TRAVEL: tuple[float, ...] = (600.0, 50.0, 50.0, 15.0)
@@ -47,10 +52,45 @@ JOINT_UNITS: tuple[str, ...] = ("mm", "mm", "mm", "deg", "mm", "mm", "mm", "deg"
 QUANTITIES: tuple[str, ...] = ("travel", "velocity", "acceleration")
 
 N_INTERVALS = 6
-"""Six knot intervals ``h_1..h_6`` (SPEC §2)."""
+"""Six knot intervals ``h_1..h_6`` (conventions §2)."""
 N_FREE = 5
-"""Five free control points ``d_3..d_7`` (SPEC §2)."""
+"""Five free control points ``d_3..d_7`` (conventions §2)."""
 N_POSE = 6
 N_JOINTS = 8
 N_VAR = N_INTERVALS + N_FREE * N_POSE  # 36
 N_CON = 3 * N_JOINTS  # 24
+
+# -- the paper's study (§5) and its presets -------------------------------------------------
+POP_SIZE = 150
+"""Population of every optimiser in the paper's study (§5.2)."""
+N_ITER = 100
+"""Iterations of every optimiser in the paper's study (§5.2)."""
+N_SEEDS = 31
+"""Runs per algorithm of the comparison (the paper reports one; 31 give statistics)."""
+HV_REFERENCE = 1.1
+"""Hypervolume reference point after normalisation by the reference front (conventions §8)."""
+PRESETS: dict[str, dict] = {
+    "paper": dict(interval_bounds=INTERVAL_BOUNDS),
+    "wide": dict(interval_bounds=(0.5, 10.0)),
+}
+"""Problem presets: ``paper`` (h in [3.5, 10] s, conventions §3) and ``wide`` (h in
+[0.5, 10] s, where the velocity limits rather than the interval bounds decide the fast end
+of the front)."""
+BEST_KNOWN = dict(n_points=150, n_perturbed=0, steps=600)
+"""Settings of the best-known front used as the comparison's reference front."""
+MEMETIC_STEPS = 100
+"""Gradient-refinement steps of the comparison's "IMOCS + refine" rows."""
+
+# -- one certified plan ---------------------------------------------------------------------
+RATE = 1000.0
+"""Servo rate of a plan's samples (Hz)."""
+PLAN_REFINE_STEPS = 300
+"""Gradient-refinement steps of the front before a plan chooses its point."""
+
+# -- the sweep (the main job) ---------------------------------------------------------------
+SWEEP_RHO: tuple[float, ...] = (0.3, 0.4, 0.5)
+SWEEP_ALPHA_MAX: tuple[float, ...] = (0.05, 0.1, 0.2)
+SWEEP_SEEDS = 2
+SWEEP_ITERS = 50
+SWEEP_CHUNK = 40
+"""Most runs per compiled call of a sweep."""

@@ -22,6 +22,8 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from . import checks
+
 __all__ = ["AXIS", "SHARDED", "SAME", "choose", "mesh", "put", "sharded", "replicated", "share_rows"]
 
 AXIS = "items"
@@ -39,7 +41,7 @@ def choose(devices: int | None, n_items: int) -> list:
     local = jax.local_devices()
     if devices is None:
         devices = len(local)
-    elif isinstance(devices, bool) or not isinstance(devices, (int, np.integer)) or not 1 <= devices <= len(local):
+    elif not (checks.is_integer(devices) and 1 <= devices <= len(local)):
         raise ValueError(
             f"devices must be an integer from 1 to {len(local)} (JAX's local devices; a CPU "
             f"process gets more with jax.config.update('jax_num_cpu_devices', n) before its "

@@ -1,6 +1,6 @@
 """Exact extrema of low-degree polynomials on an interval, as array programs.
 
-The limits of SPEC §6 need ``max |q(t)|``, ``max |q'(t)|`` and ``max |q''(t)|`` on every knot
+The limits of conventions §6 need ``max |q(t)|``, ``max |q'(t)|`` and ``max |q''(t)|`` on every knot
 span, where q is a quintic. The extrema of ``|Q|`` on ``[0, h]`` lie at the ends or at roots
 of ``Q'``, so the roots are found by the derivative chain: the roots of the jerk (a
 quadratic, closed form) split the span into pieces on which the acceleration is monotone,
@@ -286,7 +286,7 @@ def span_bounds(c, h):
     grid point, M a bound of ``|Q''|`` on the span (here: the next quantity's U for the value,
     the Bernstein hull of the quadratic jerk for the velocity, the ends of the linear snap for
     the acceleration). Everything is a fixed number of multiply-adds per span, with no
-    division but ``1/h``: about 30× cheaper than :func:`span_maxima`, which the caller keeps
+    division but ``1/h``: far cheaper than :func:`span_maxima`, which the caller keeps
     for the spans where ``U − L`` matters.
     """
     terms = [c[..., 0]]

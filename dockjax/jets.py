@@ -1,14 +1,14 @@
-"""Truncated Taylor series ("jets") for the right arm's nonlinear joints (SPEC §5).
+"""Truncated Taylor series ("jets") for the right arm's nonlinear joints (conventions §5).
 
 A jet is a sequence of arrays, its normalised Taylor coefficients ``a[k] = a^(k)(t) / k!``
 (:func:`terms` splits a stacked jet along its last axis, :func:`stack` joins one). Kept as
 separate arrays, every operation is elementwise: XLA fuses the forward pass and, above
 all, the reverse pass (a jet stacked along an axis makes every coefficient access a slice,
-whose transpose is a pad: hundreds of small unfused ops in a gradient). The right arm's axial, lift and lateral joints go through
-``sin``/``cos`` of the pitch and yaw (SPEC §4), so their derivatives up to the jerk (and
-one order more for root polishing) follow from Taylor-mode arithmetic: the Cauchy product
-and the classic sine/cosine recurrences (Griewank & Walther, *Evaluating Derivatives*,
-§13.2).
+whose transpose is a pad: hundreds of small unfused ops in a gradient). The right arm's
+axial, lift and lateral joints go through ``sin``/``cos`` of the pitch and yaw (conventions
+§4), so their derivatives up to the jerk (and beyond, for the Taylor models of the limits)
+follow from Taylor-mode arithmetic: the Cauchy product and the classic sine/cosine
+recurrences (Griewank & Walther, *Evaluating Derivatives*, §13.2).
 """
 
 from __future__ import annotations

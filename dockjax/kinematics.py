@@ -1,10 +1,10 @@
-"""Kinematics of the dual-arm cabin-docking robot (paper §2, Eqs. 1–15; SPEC §4).
+"""Kinematics of the dual-arm cabin-docking robot (paper §2, Eqs. 1–15; conventions §4).
 
 The D-H base frame of Eqs. 1–7 is not the task frame of paper §3: its x axis is the cabin
-axis (task Z), its y axis task X and its z axis task Y (SPEC §4). Joint 1 of each arm is
+axis (task Z), its y axis task X and its z axis task Y (conventions §4). Joint 1 of each arm is
 the axial joint, joint 2 the lift, joint 3 the lateral joint and joint 4 the roll.
 
-Readings fixed by SPEC §4 (departures from the printed paper):
+Readings fixed by conventions §4 (departures from the printed paper):
 
 * Table 1's garbled row ``R_2`` is read as ``(θ, d, a, α) = (π/2, d_R2, 0, −π/2)`` and the
   link lengths ``d_L``, ``d_R`` and offsets ``d_L4``, ``d_R4`` are zero; with that, the
@@ -23,6 +23,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from . import jets
+
 __all__ = [
     "DH_LEFT",
     "DH_RIGHT",
@@ -34,6 +36,8 @@ __all__ = [
     "eq2_right",
     "cabin_axis",
     "right_end_point",
+    "arm_joints",
+    "cabin_axis_jets",
     "inverse_kinematics",
     "forward_kinematics",
 ]
@@ -48,16 +52,16 @@ DH_LEFT = (
     (_HALF_PI, "d3", 0.0, _HALF_PI),  # L3: lateral (link length d_L = 0)
     ("theta", 0.0, 0.0, 0.0),  # L4: roll (d_L4 = 0)
 )
-"""Table 1, left arm, with ``d_L = d_L4 = 0`` (SPEC §4)."""
+"""Table 1, left arm, with ``d_L = d_L4 = 0`` (conventions §4)."""
 
 DH_RIGHT = (
     (_HALF_PI, 0.0, 0.0, _HALF_PI),  # Base-R0
     (0.0, "d1", 0.0, -_HALF_PI),  # R1: axial
-    (_HALF_PI, "d2", 0.0, -_HALF_PI),  # R2: lift (garbled row read per SPEC §4)
+    (_HALF_PI, "d2", 0.0, -_HALF_PI),  # R2: lift (garbled row read per conventions §4)
     (-_HALF_PI, "d3", 0.0, -_HALF_PI),  # R3: lateral (link length d_R = 0)
     ("theta", 0.0, 0.0, 0.0),  # R4: roll (d_R4 = 0)
 )
-"""Table 1, right arm, with ``d_R = d_R4 = 0`` and row ``R_2`` read per SPEC §4."""
+"""Table 1, right arm, with ``d_R = d_R4 = 0`` and row ``R_2`` read per conventions §4."""
 
 
 def dh_transform(theta, d, a, alpha):
@@ -114,7 +118,7 @@ def eq2_right(d1, d2, d3, theta_deg):
 
 
 def cabin_axis(pitch_deg, yaw_deg):
-    """Unit cabin axis ``u(α, β) = (cos α sin β, sin α, cos α cos β)`` in task XYZ (SPEC §4)."""
+    """Unit cabin axis ``u(α, β) = (cos α sin β, sin α, cos α cos β)`` in task XYZ (conventions §4)."""
     a, b = jnp.deg2rad(pitch_deg), jnp.deg2rad(yaw_deg)
     return jnp.stack([jnp.cos(a) * jnp.sin(b), jnp.sin(a), jnp.cos(a) * jnp.cos(b)], axis=-1)
 
@@ -125,17 +129,51 @@ def right_end_point(pose, arm_distance):
     return pose[..., :3] + arm_distance * cabin_axis(pose[..., 3], pose[..., 4])
 
 
+def arm_joints(x, y, z, roll, axis_x, axis_y, axis_z, arm_distance) -> tuple:
+    """The one map from the cabin pose to the eight joints (Eqs. 6–7 read per conventions §4).
+
+    ``x, y, z``: the left arm's end point (mm); ``roll`` γ (°); ``axis_*``: the cabin axis
+    ``u(α, β) = (cos α sin β, sin α, cos α cos β)`` (:func:`cabin_axis`); the right arm's
+    end is ``K_R = K_L + D_2 u``. Returns the joints in the order
+    ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` =
+    ``[−z, y, −x, γ, z + D_2 u_z, y + D_2 u_y, −(x + D_2 u_x), −γ]``.
+
+    Linear in its arguments, so it serves values, power series (one coefficient array per
+    argument) and Taylor coefficients alike: every caller in dockjax — the inverse
+    kinematics, the kernel's joint series and jets, :class:`dockjax.Trajectory` — goes
+    through it.
+    """
+    d2 = arm_distance
+    return (-z, y, -x, roll, z + d2 * axis_z, y + d2 * axis_y, -(x + d2 * axis_x), -roll)
+
+
+def cabin_axis_jets(pitch, yaw, near=None) -> tuple[list, list, list]:
+    """Jets (:mod:`dockjax.jets`) of the cabin axis ``(u_x, u_y, u_z)`` from jets of pitch
+    and yaw (lists of normalised Taylor coefficients, in radians).
+
+    ``near``: None (the sines and cosines of the angles' values by the library), or, per
+    angle, ``(offset, sin ref, cos ref)``: the value is ``ref + offset`` (radians, a small
+    offset from a reference angle whose sine and cosine are known), and its sine and cosine
+    come from :func:`dockjax.jets.sin_cos_near`."""
+    trig = []
+    for a, ref in zip((pitch, yaw), near or (None, None)):
+        trig.append(jets.sin_cos(a) if ref is None else jets.sin_cos(a, *jets.sin_cos_near(*ref)))
+    (sa, ca), (sb, cb) = trig
+    # u_z before u_x: the order of the uses of cos α fixes the order in which reverse-mode
+    # differentiation sums its cotangents, hence the gradients' last bits
+    uz = jets.mul(ca, cb)
+    return jets.mul(ca, sb), sa, uz
+
+
 def inverse_kinematics(pose, arm_distance):
-    """Joint values of both arms for a cabin pose (Eqs. 6–7 read per SPEC §4).
+    """Joint values of both arms for a cabin pose (Eqs. 6–7 read per conventions §4).
 
     pose: (..., 6) ``[x, y, z, α, β, γ]`` (mm, °). Returns (..., 8) in the joint order
-    ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` (mm, °):
-    left ``[−z_L, y_L, −x_L, γ]``, right ``[z_R, y_R, −x_R, −γ]``.
+    ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` (mm, °), by :func:`arm_joints`.
     """
     pose = jnp.asarray(pose)
-    xr, yr, zr = jnp.moveaxis(right_end_point(pose, arm_distance), -1, 0)
-    x, y, z, g = pose[..., 0], pose[..., 1], pose[..., 2], pose[..., 5]
-    return jnp.stack([-z, y, -x, g, zr, yr, -xr, -g], axis=-1)
+    u = jnp.moveaxis(cabin_axis(pose[..., 3], pose[..., 4]), -1, 0)
+    return jnp.stack(arm_joints(pose[..., 0], pose[..., 1], pose[..., 2], pose[..., 5], *u, arm_distance), axis=-1)
 
 
 def forward_kinematics(joints, arm_distance):

@@ -1,6 +1,6 @@
-"""Quality indicators of a final set: ONVG, GD, SP, IGD, IGD+ and hypervolume (SPEC §8).
+"""Quality indicators of a final set: ONVG, GD, SP, IGD, IGD+ and hypervolume (conventions §8).
 
-Definitions (ALGORITHMS.md, "Indicators"), all for minimisation:
+Definitions (conventions §10), all for minimisation:
 
 - **ONVG**: the number of distinct non-dominated points among the valid (feasible) rows.
 - **GD** (D. A. Van Veldhuizen, "Multiobjective evolutionary algorithms: classifications,
@@ -16,7 +16,7 @@ Definitions (ALGORITHMS.md, "Indicators"), all for minimisation:
   https://doi.org/10.1007/978-3-319-15892-1_8): as IGD with
   ``d+(z, a) = sqrt(Σ_k max(a_k − z_k, 0)²)``, ``z`` a reference point and ``a`` a set point.
 - **HV**: the exact 2-D hypervolume of the points that strictly dominate the reference point
-  (:func:`dockjax.algorithms.base.hypervolume_2d`).
+  (:func:`hypervolume_2d`).
 
 Every indicator function here is a pure ``jax.numpy`` function of fixed shapes: it jits and
 vmaps. Each takes an optional boolean ``valid`` mask (keyword) so that a fixed-shape
@@ -27,7 +27,7 @@ point is 0 (there is no spread to measure).
 
 Precision follows the inputs (float32 by default; float64 under
 ``with jax.enable_x64(True):``). :func:`indicators` is the NumPy-in/NumPy-out layer: it
-normalises by the reference front (SPEC §8), computes every indicator in float64 and returns
+normalises by the reference front (conventions §8), computes every indicator in float64 and returns
 plain Python numbers.
 
 Shapes: ``n`` set points, ``r`` reference points, ``m`` objectives.
@@ -41,11 +41,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .algorithms.base import hypervolume_2d
+from . import config, pareto
 from .pareto import constrained_dominance
 
 __all__ = [
     "gd",
+    "hypervolume_2d",
     "hypervolume",
     "hypervolume_numpy",
     "igd",
@@ -64,13 +65,13 @@ NAMES = ("ONVG", "GD", "SP", "IGD", "IGD+", "HV")
 
 
 # ----------------------------------------------------------------------------- helpers
-def _prepare(F: jax.Array, valid: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+def _prepare(F: jax.Array, valid: jax.Array | None, name: str = "F") -> tuple[jax.Array, jax.Array]:
     """F as a float (n, m) array with masked rows zeroed (so NaN/inf cannot leak), and the mask."""
     F = jnp.asarray(F)
     if not jnp.issubdtype(F.dtype, jnp.floating):
         F = F.astype(jnp.result_type(float))
     if F.ndim != 2:
-        raise ValueError(f"F must be (n, m), got shape {F.shape}")
+        raise ValueError(f"{name} must be (n, m), got shape {F.shape}")
     if valid is None:
         valid = jnp.ones(F.shape[0], dtype=bool)
     else:
@@ -127,14 +128,8 @@ def reference_normalisation(
     Returns:
         ``(ideal, nadir)``, each (m,). With no valid row both are NaN.
     """
-    R = jnp.asarray(ref_front)
-    if not jnp.issubdtype(R.dtype, jnp.floating):
-        R = R.astype(jnp.result_type(float))
-    if R.ndim != 2:
-        raise ValueError(f"ref_front must be (r, m), got shape {R.shape}")
-    if valid is None:
-        valid = jnp.ones(R.shape[0], dtype=bool)
-    valid = jnp.asarray(valid, dtype=bool)[:, None]
+    R, valid = _prepare(ref_front, valid, name="ref_front")
+    valid = valid[:, None]
     ideal = jnp.min(jnp.where(valid, R, jnp.inf), axis=0)
     nadir = jnp.max(jnp.where(valid, R, -jnp.inf), axis=0)
     empty = ~jnp.any(valid)
@@ -220,37 +215,26 @@ def _inverted(dist: jax.Array, valid: jax.Array) -> jax.Array:
     return jnp.where(jnp.any(valid), jnp.mean(jnp.where(jnp.any(valid), nearest, 0.0)), jnp.nan)
 
 
-def igd(F: jax.Array, /, ref: jax.Array, *, valid: jax.Array | None = None) -> jax.Array:
-    """Inverted generational distance: mean over ``ref`` of the distance to the nearest point.
-
-    Args:
-        F: (n, m) set, minimised.
-        ref: (r, m) reference front.
-        valid: optional (n,) bool mask.
-
-    Returns:
-        () IGD; NaN with no valid row. Agrees with ``moocore.igd``.
-    """
+def _inverted_distance(F, ref, valid, plus: bool) -> jax.Array:
     F, valid = _prepare(F, valid)
     ref = _reference(ref, F)
+    if plus:  # d+(z, a) = sqrt(Σ_k max(a_k − z_k, 0)²), z in ref, a in F
+        excess = jnp.maximum(F[None, :, :] - ref[:, None, :], 0.0)  # (r, n, m)
+        return _inverted(jnp.sqrt(jnp.sum(excess * excess, axis=-1)), valid)
     return _inverted(jnp.sqrt(_sq_dist(ref, F)), valid)
 
 
+def igd(F: jax.Array, /, ref: jax.Array, *, valid: jax.Array | None = None) -> jax.Array:
+    """Inverted generational distance of F (n, m) to the reference front ``ref`` (r, m): the
+    mean over ``ref`` of the Euclidean distance to the nearest valid point (``valid``: an
+    optional (n,) mask). → (); NaN with no valid row. Agrees with ``moocore.igd``."""
+    return _inverted_distance(F, ref, valid, plus=False)
+
+
 def igd_plus(F: jax.Array, /, ref: jax.Array, *, valid: jax.Array | None = None) -> jax.Array:
-    """IGD+: IGD with ``d+(z, a) = sqrt(Σ_k max(a_k − z_k, 0)²)`` (z in ``ref``, a in F).
-
-    Args:
-        F: (n, m) set, minimised.
-        ref: (r, m) reference front.
-        valid: optional (n,) bool mask.
-
-    Returns:
-        () IGD+; NaN with no valid row. Agrees with ``moocore.igd_plus``.
-    """
-    F, valid = _prepare(F, valid)
-    ref = _reference(ref, F)
-    excess = jnp.maximum(F[None, :, :] - ref[:, None, :], 0.0)  # (r, n, m)
-    return _inverted(jnp.sqrt(jnp.sum(excess * excess, axis=-1)), valid)
+    """IGD+ (:func:`igd` with ``d+(z, a) = sqrt(Σ_k max(a_k − z_k, 0)²)``, z in ``ref``, a in F).
+    → (); NaN with no valid row. Agrees with ``moocore.igd_plus``."""
+    return _inverted_distance(F, ref, valid, plus=True)
 
 
 # ------------------------------------------------------------------------------ SP
@@ -280,6 +264,22 @@ def sp(F: jax.Array, /, *, valid: jax.Array | None = None) -> jax.Array:
 
 
 # ------------------------------------------------------------------------------ HV
+def hypervolume_2d(F, feasible, ref):
+    """Exact 2-D hypervolume (minimisation) of the feasible points of F (n, 2) up to ``ref``.
+
+    Traceable: sort by f1, keep the running minimum of f2, sum the rectangles.
+    """
+    big = jnp.asarray(jnp.inf, F.dtype)
+    f1 = jnp.where(feasible & jnp.all(F < ref, axis=1), F[:, 0], big)
+    order = pareto.lexsort((f1,))
+    f1s = f1[order]
+    f2s = jnp.where(jnp.isfinite(f1s), F[order, 1], ref[1])
+    best = jax.lax.cummin(f2s)
+    prev = jnp.concatenate([jnp.full((1,), ref[1], F.dtype), best[:-1]])
+    width = jnp.where(jnp.isfinite(f1s), ref[0] - f1s, 0.0)
+    return jnp.sum(width * jnp.maximum(prev - best, 0.0))
+
+
 def hypervolume(F: jax.Array, /, ref: Any, *, valid: jax.Array | None = None) -> jax.Array:
     """Exact hypervolume (minimisation) of a 2-objective set up to the reference point.
 
@@ -317,9 +317,9 @@ def indicator_values(
     valid: jax.Array | None = None,
     ideal: jax.Array | None = None,
     nadir: jax.Array | None = None,
-    hv_ref: float = 1.1,
+    hv_ref: float = config.HV_REFERENCE,
 ) -> dict[str, jax.Array]:
-    """Every indicator of SPEC §8 as a traceable function (jit/vmap it).
+    """Every indicator of conventions §8 as a traceable function (jit/vmap it).
 
     The set and the reference front are normalised by ``ideal`` and ``nadir`` (default: the
     reference front's, :func:`reference_normalisation`). The set that is scored is the
@@ -332,7 +332,7 @@ def indicator_values(
         ref_front: (r, m) reference front (in the same units as F).
         valid: optional (n,) bool mask (feasible rows).
         ideal, nadir: optional (m,) normalisation; pass fixed ones when runs are scored one at
-            a time against a reference fixed beforehand (SPEC §8).
+            a time against a reference fixed beforehand (conventions §8).
         hv_ref: reference point of the hypervolume after normalisation (scalar or (m,)).
 
     Returns:
@@ -365,11 +365,11 @@ def indicators(
     valid: Any,
     ref_front: Any,
     *,
-    hv_ref: float = 1.1,
+    hv_ref: float = config.HV_REFERENCE,
     ideal: Any = None,
     nadir: Any = None,
 ) -> dict[str, Any]:
-    """NumPy in, NumPy out: ONVG, GD, SP, IGD, IGD+ and HV of a final set (SPEC §8).
+    """NumPy in, NumPy out: ONVG, GD, SP, IGD, IGD+ and HV of a final set (conventions §8).
 
     Computes :func:`indicator_values` in float64 (inside ``jax.enable_x64``; no global flag is
     changed) on objectives normalised by the reference front's ideal and nadir points, with the
@@ -383,7 +383,8 @@ def indicators(
         ideal, nadir: optional fixed normalisation (m,); default the reference front's.
 
     Returns:
-        dict name -> value, in the order of :data:`NAMES`: Python ``int``/``float`` for one set, NumPy arrays of the batch
+        dict name -> value, in the order of :data:`NAMES`: Python ``int``/``float`` for one set,
+        NumPy arrays of the batch
         shape for a batch.
     """
     F = np.asarray(F, dtype=np.float64)

@@ -3,7 +3,7 @@
 Implements the ranking machinery of NSGA-II (K. Deb, A. Pratap, S. Agarwal, T. Meyarivan,
 "A fast and elitist multiobjective genetic algorithm: NSGA-II", IEEE Trans. Evol. Comput.
 6(2):182-197, 2002, https://doi.org/10.1109/4235.996017) with Deb's constraint-domination,
-as SPEC.md §6-7 requires of every optimiser:
+as docs/conventions.md §6-7 requires of every optimiser:
 
 - a feasible candidate (total violation 0) dominates every infeasible one;
 - of two infeasible candidates the one with the smaller total violation dominates; equal
@@ -17,7 +17,7 @@ candidates, ``m`` objectives, ``c`` constraints.
 
 Differences from pymoo 0.6.2 (the test-suite's reference), all deliberate:
 
-- ``crowding_distance`` is Deb's sum over objectives (ALGORITHMS.md); pymoo's
+- ``crowding_distance`` is Deb's sum over objectives (conventions §10); pymoo's
   ``calc_crowding_distance`` divides that sum by ``m``. The factor is uniform, so no comparison
   inside a front changes. Duplicates are not removed: within a front equal values are
   ordered by index, as pymoo 0.6.2's stable sort of ``"cd"`` does, so the two agree (up to
@@ -83,8 +83,8 @@ def lexsort(keys, packed: bool | None = None) -> jax.Array:
     permutation, by one sort of packed integers.
 
     XLA:CPU sorts a single integer array with a plain comparison, but calls a compiled
-    comparator for every comparison of a multi-key or floating-point sort: 3–5× dearer for
-    the few hundred members survival sorts. Each key is replaced by its ordinal (how many
+    comparator for every comparison of a multi-key or floating-point sort, several times
+    dearer for the few hundred members survival sorts. Each key is replaced by its ordinal (how many
     values sort strictly before it: a sort of the key alone and a binary search), and the
     ordinals and the index are packed into one int64. Falls back to ``jnp.lexsort`` when
     64-bit integers are off (JAX's default precision) or the packed key would not fit.

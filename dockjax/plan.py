@@ -1,9 +1,9 @@
 """One certified docking trajectory a controller can run (the ``dockjax plan`` command).
 
 :func:`plan` optimises the problem (IMOCS by default), ranks the feasible front by the
-weighted satisfaction of Eq. 26 (SPEC §8), and certifies the best candidate before anything
+weighted satisfaction of Eq. 26 (conventions §8), and certifies the best candidate before anything
 is written: the trajectory sampled at the servo rate must respect every limit at every
-sample, and the kernel's per-span maxima (SPEC §6: rigorous upper bounds, never
+sample, and the kernel's per-span maxima (conventions §6: rigorous upper bounds, never
 understated, in every right-arm treatment) must too. If
 the chosen candidate fails, the next best is tried; if none passes, :class:`PlanError`
 names the limit that cannot be met.
@@ -13,17 +13,20 @@ from __future__ import annotations
 
 import json
 import math
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from . import __version__, config, select
-from .algorithms import optimize
-from .problem import DockingProblem
+from . import config, plots, select
 from .io import atomic_write_text
 from .metrics import nondominated_points
+from .optimize import optimize
+from .problem import DockingProblem
+from .refine import refine as polish
 from .trajectory import Trajectory
+from .version import __version__
 
 __all__ = ["PlanError", "Plan", "plan", "load_limits", "write_plan"]
 
@@ -84,13 +87,12 @@ def load_limits(path: str | Path) -> dict:
         raise ValueError(f"limits file {path} cannot be read: {exc.strerror or exc}") from None
     try:
         if path.suffix.lower() == ".toml":
-            import tomllib
-
             data = tomllib.loads(text)
         else:
             data = json.loads(text)
     except Exception as exc:  # noqa: BLE001 - any parse error is bad input
-        raise ValueError(f"limits file {path} is not valid {path.suffix.lstrip('.').upper() or 'JSON'}: {exc}") from None
+        kind = path.suffix.lstrip('.').upper() or 'JSON'
+        raise ValueError(f"limits file {path} is not valid {kind}: {exc}") from None
     if not isinstance(data, dict):
         raise ValueError(f"limits file {path} must hold a table of limits")
     allowed = {"travel", "velocity", "acceleration", "home"}
@@ -112,11 +114,11 @@ def _sample_violation(problem: DockingProblem, s: dict) -> tuple[float, str]:
     return float(vals[j, k]), f"{config.JOINT_NAMES[j]} {config.QUANTITIES[k]}"
 
 
-def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: float = 1000.0,
-         pop_size: int = 150, n_iter: int = 100, seed: int = 0, algorithm: str = "imocs",
-         refine: bool = True, refine_steps: int = 300) -> Plan:
-    """Optimise, polish the front with gradient refinement (:mod:`dockjax.refine`, unless
-    ``refine=False``), choose by Eq. 26 with ``weights`` (w_T, w_jerk), certify, and return
+def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: float = config.RATE,
+         pop_size: int = config.POP_SIZE, n_iter: int = config.N_ITER, seed: int = 0, algorithm: str = "imocs",
+         refine_steps: int = config.PLAN_REFINE_STEPS) -> Plan:
+    """Optimise, polish the front with ``refine_steps`` steps of gradient refinement
+    (:mod:`dockjax.refine`; 0: none), choose by Eq. 26 with ``weights`` (w_T, w_jerk), certify, and return
     a Plan.
 
     Raises ValueError on bad input (before any compilation) and :class:`PlanError` when no
@@ -142,9 +144,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     F, X = res.F[0][m], res.X[0][m]
     F, idx = nondominated_points(F, return_index=True)
     X = X[idx]
-    if refine:
-        from .refine import refine as polish
-
+    if refine_steps:
         r = polish(problem, X, steps=refine_steps)
         keep = r.feasible
         X = np.concatenate([X, r.X[keep & r.improved]])
@@ -160,7 +160,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
         if v <= 0 and np.all(g <= 0):
             settings = {"weights": list(map(float, w)), "rate": float(rate), "pop_size": pop_size,
                         "n_iter": n_iter, "seed": seed, "algorithm": algorithm,
-                        "refine": bool(refine), "refine_steps": int(refine_steps)}
+                        "refine_steps": int(refine_steps)}
             return Plan(problem, traj, X[j], float(F[j, 0]), float(F[j, 1]), F[np.argsort(F[:, 0])],
                         s, float(rate), tuple(w), settings)
         worst = min(worst, (max(v, float(g.max())), name))
@@ -170,8 +170,6 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
 def write_plan(p: Plan, out: str | Path) -> list[Path]:
     """Write trajectory.csv, summary.json, front.png and trajectory.png into ``out``
     (each file atomically)."""
-    from . import plots
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     files = [p.trajectory.to_csv(out / "trajectory.csv", p.rate)]
@@ -190,7 +188,7 @@ def write_plan(p: Plan, out: str | Path) -> list[Path]:
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     files.append(out / "summary.json")
-    label = p.settings.get("algorithm", "imocs") + ("+refine" if p.settings.get("refine") else "")
+    label = p.settings.get("algorithm", "imocs") + ("+refine" if p.settings.get("refine_steps") else "")
     files.append(plots.plot_fronts({label: p.front}, out / "front.png", highlight=(p.T, p.jerk),
                                    title=f"front and chosen point (T = {p.T:.2f} s)"))
     s = p.samples

@@ -1,4 +1,5 @@
-"""Every figure of the study (matplotlib, Agg backend; nothing is shown on screen).
+"""Every figure of dockjax (matplotlib's object API: figures are drawn off screen by their
+own canvas, so importing this module changes no backend and no global state).
 
 Each function takes plain NumPy data and a path, writes one PNG atomically and returns
 the path.
@@ -9,35 +10,48 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from . import config
+from .io import atomic_write
 
-from . import config  # noqa: E402
-from .io import atomic_write  # noqa: E402
-
-__all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence"]
+__all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence", "plot_heatmap",
+           "plot_median_iqr", "plot_front_groups"]
 
 COLORS = {"imocs": "C3", "mocs": "C1", "nsga2": "C0", "mopso": "C2", "imocs+refine": "C4"}
 LABELS = {"imocs": "IMOCS", "mocs": "MOCS", "nsga2": "NSGA-II", "mopso": "MOPSO",
           "imocs+refine": "IMOCS + refine"}
 
 
+def _axes(nrows: int = 1, ncols: int = 1, figsize=(6.5, 4.5), **kw):
+    """A new figure and its axes (an array for several)."""
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kw)
+
+
+def _finish(fig, ax, path, *, xlabel: str, ylabel: str, title: str, log_y: bool = False, legend_size=None) -> Path:
+    """Labels, log scale, legend and grid of a one-axes figure, then :func:`save`."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if log_y:
+        ax.set_yscale("log")
+    ax.set_title(title)
+    ax.legend(fontsize=legend_size)
+    ax.grid(alpha=0.3)
+    return save(fig, path)
+
+
 def save(fig, path: str | os.PathLike) -> Path:
-    """Save a figure as PNG atomically and close it."""
-    try:
-        return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=120, bbox_inches="tight"))
-    finally:
-        plt.close(fig)
+    """Save a figure as PNG atomically."""
+    return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=120, bbox_inches="tight"))
 
 
 def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title="", highlight=None,
                 reference_label="reference front") -> Path:
     """All algorithms' fronts in one plot (the paper's Fig. 12). fronts: name → (k, 2);
     ``highlight``: one (T, jerk) point to mark (e.g. the chosen trajectory)."""
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    fig, ax = _axes()
     if reference is not None and len(reference):
         r = reference[np.argsort(reference[:, 0])]
         ax.plot(r[:, 0], r[:, 1], "-", color="0.4", lw=1.2, label=reference_label)
@@ -46,19 +60,14 @@ def plot_fronts(fronts: dict[str, np.ndarray], path, *, reference=None, title=""
             ax.plot(f[:, 0], f[:, 1], "o", ms=3, color=COLORS.get(name), label=LABELS.get(name, name))
     if highlight is not None:
         ax.plot([highlight[0]], [highlight[1]], "*", ms=14, color="k", label="chosen")
-    ax.set_xlabel("total time T [s]")
-    ax.set_ylabel("jerk objective (Eq. 25)")
-    ax.set_yscale("log")
-    ax.set_title(title or "Pareto fronts")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    return save(fig, path)
+    return _finish(fig, ax, path, xlabel="total time T [s]", ylabel="jerk objective (Eq. 25)",
+                   title=title or "Pareto fronts", log_y=True)
 
 
 def plot_left_arm(samples: dict[str, dict[str, np.ndarray]], path) -> Path:
     """Left arm end X, Y, Z: position, velocity, acceleration of the chosen trajectories
     (the paper's Figs. 13–21). samples: label → {"t", "pose", "pose_vel", "pose_acc"}."""
-    fig, axes = plt.subplots(3, 3, figsize=(12, 8), sharex=False)
+    fig, axes = _axes(3, 3, figsize=(12, 8), sharex=False)
     names = ("position [mm]", "velocity [mm/s]", "acceleration [mm/s²]")
     for label, s in samples.items():
         for i, axis in enumerate("XYZ"):
@@ -76,7 +85,7 @@ def plot_left_arm(samples: dict[str, dict[str, np.ndarray]], path) -> Path:
 def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, title="") -> Path:
     """The eight joints' position, velocity and acceleration, limits dashed.
     sample: {"t", "position", "velocity", "acceleration"} (m, 8); limits (8, 3)."""
-    fig, axes = plt.subplots(8, 3, figsize=(12, 16), sharex=True)
+    fig, axes = _axes(8, 3, figsize=(12, 16), sharex=True)
     for j in range(8):
         unit = config.JOINT_UNITS[j]
         for k, (key, u) in enumerate(zip(("position", "velocity", "acceleration"), ("", "/s", "/s²"))):
@@ -97,15 +106,56 @@ def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, titl
 def plot_convergence(histories: dict[str, np.ndarray], path, *, title="") -> Path:
     """Hypervolume over iterations per algorithm: median and interquartile band over seeds.
     histories: name → (runs, n_iter)."""
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    fig, ax = _axes()
     for name, h in histories.items():
         it = np.arange(1, h.shape[1] + 1)
         q1, med, q3 = np.percentile(h, [25, 50, 75], axis=0)
         ax.plot(it, med, color=COLORS.get(name), label=LABELS.get(name, name))
         ax.fill_between(it, q1, q3, color=COLORS.get(name), alpha=0.2)
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("hypervolume of the feasible set")
-    ax.set_title(title or "convergence")
-    ax.legend()
-    ax.grid(alpha=0.3)
+    return _finish(fig, ax, path, xlabel="iteration", ylabel="hypervolume of the feasible set",
+                   title=title or "convergence")
+
+
+def plot_heatmap(M: np.ndarray, rows, cols, path, *, xlabel: str, ylabel: str, title: str) -> Path:
+    """A value per grid cell, annotated. M: (len(rows), len(cols))."""
+    fig, ax = _axes(figsize=(1.2 * len(cols) + 2.5, 0.9 * len(rows) + 2))
+    im = ax.imshow(M, origin="lower", cmap="viridis", aspect="auto")
+    for i in range(len(rows)):
+        for j in range(len(cols)):
+            ax.text(j, i, f"{M[i, j]:.3f}", ha="center", va="center", color="w", fontsize=8)
+    ax.set_xticks(range(len(cols)), [f"{a:g}" for a in cols])
+    ax.set_yticks(range(len(rows)), [f"{r:g}" for r in rows])
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    fig.colorbar(im, ax=ax)
     return save(fig, path)
+
+
+def plot_median_iqr(lines: dict[str, tuple], path, *, xlabel: str, ylabel: str, title: str) -> Path:
+    """Medians with interquartile bars, one line per label: ``label → (x (k,), median (k,),
+    quartiles (k, 2))``; the lines are shifted sideways a little so the bars stay readable."""
+    fig, ax = _axes()
+    xs = np.concatenate([v[0] for v in lines.values()]) if lines else np.zeros(1)
+    dx = 0.01 * (np.ptp(xs) or np.max(np.abs(xs)) or 1.0)
+    for g, (label, (x, y, q)) in enumerate(lines.items()):
+        ax.errorbar(x + dx * (g - (len(lines) - 1) / 2), y, yerr=[y - q[:, 0], q[:, 1] - y], marker="o", capsize=3,
+                    label=label)
+    ax.set_xticks(np.unique(xs))
+    return _finish(fig, ax, path, xlabel=xlabel, ylabel=ylabel, title=title, legend_size=7)
+
+
+def plot_front_groups(groups: dict[str, list[np.ndarray]], reference: np.ndarray, path, *, reference_label: str,
+                      title: str) -> Path:
+    """Every front of each group (``label → fronts (k, 2)``) in one colour, over a reference front."""
+    fig, ax = _axes()
+    ax.plot(reference[:, 0], reference[:, 1], ".-", color="0.5", lw=1, ms=4, drawstyle="steps-post",
+            label=reference_label)
+    for color, (label, fronts) in zip(("C3", "C0", "C2", "C1"), groups.items()):
+        first = True
+        for f in fronts:
+            if len(f):
+                ax.plot(f[:, 0], f[:, 1], "o", ms=3, color=color, alpha=0.6, label=label if first else None)
+                first = False
+    return _finish(fig, ax, path, xlabel="total time T [s]", ylabel="jerk objective (Eq. 25)", title=title,
+                   log_y=True, legend_size=7)

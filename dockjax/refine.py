@@ -1,10 +1,10 @@
-"""Gradient polishing of candidate trajectories, and a best-known front (SPEC §3, §5, §6).
+"""Gradient polishing of candidate trajectories, and a best-known front (conventions §3, §5, §6).
 
 :func:`refine` takes a set of candidates ``X`` (n, n_var) and, for every point i at once,
 solves the sub-problem
 
-    minimise jerk(x)  subject to  T(x) ≤ T_i,  G(x) ≤ 0 (the 24 limits of SPEC §6),
-    x in the decision box (SPEC §3)
+    minimise jerk(x)  subject to  T(x) ≤ T_i,  G(x) ≤ 0 (the 24 limits of conventions §6),
+    x in the decision box (conventions §3)
 
 with Adam (optax) from the point itself. The whole batch is one parameter array: Adam is
 per-coordinate, so summing the per-point losses gives n independent optimisations, run
@@ -18,7 +18,7 @@ recompile).
 * The limits are handled by a smooth-plus-exact penalty on ``max(G + margin, 0)``
   (linear and quadratic terms; the ``margin`` keeps the iterates slightly inside). G has
   kinks (a maximum over time); that is harmless for a penalty method.
-* The jerk objective (SPEC §5) is recomputed here with a NaN-safe square root (the RMS of a
+* The jerk objective (conventions §5) is recomputed here with a NaN-safe square root (the RMS of a
   joint that does not move has an infinite derivative at 0) and normalised by the input's
   jerk. The kernel's critical times carry no gradient (envelope theorem, see
   :func:`dockjax.extrema.chain_extrema`), so the backward pass never enters the root
@@ -27,10 +27,10 @@ recompile).
   a small pseudo-random step, and the step counted in ``nonfinite_steps`` (0 expected).
 * At every step the current iterate is scored with the problem's own kernel; the best
   iterate that is feasible (every column of the kernel's G ≤ 0, which never understates,
-  SPEC §6), has ``T ≤ T_i`` and has the lowest jerk is kept. For a feasible input the
+  conventions §6), has ``T ≤ T_i`` and has the lowest jerk is kept. For a feasible input the
   returned point must also have a strictly lower jerk than the input, so it is never
   dominated by it; for an infeasible input any feasible point with ``T ≤ T_i`` is a repair
-  (it wins under Deb's constraint-domination, SPEC §6) and the lowest-jerk one is kept.
+  (it wins under Deb's constraint-domination, conventions §6) and the lowest-jerk one is kept.
   A point for which nothing qualifies is returned unchanged with ``improved`` False.
 
 :func:`best_known_front` is an ε-constraint sweep over ``T`` in ``[6 h_lo, 6 h_hi]`` with the
@@ -52,11 +52,13 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from . import config
+from . import checks, config
+from .decoding import decode, span_angles
 from .fusion import materialize
+from .limits import columns, maxima, maxima_screened
 from .metrics import nondominated_points
-from .problem import (DockingProblem, _columns, _maxima, _maxima_screened, _mean_square_jerk, bucket_rows, pad_rows,
-                      decode, span_angles)
+from .objectives import mean_square_jerk
+from .problem import DockingProblem, bucket_rows, pad_rows
 
 __all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
 
@@ -107,14 +109,14 @@ def _safe_sqrt(v):
 
 
 def _safe_jerk(problem, c, h, ref):
-    """As ``problem._jerk`` (SPEC §5, Eq. 25) with a square root whose gradient is finite
+    """As ``problem._jerk`` (conventions §5, Eq. 25) with a square root whose gradient is finite
     (0) where a joint's mean-square jerk is 0."""
-    ms = _mean_square_jerk(problem, c, h, ref)
+    ms = mean_square_jerk(problem, c, h, ref)
     return jnp.sum(_safe_sqrt(ms))
 
 
 def objectives_safe(problem: DockingProblem, x, screen: bool = False):
-    """``score`` (SPEC §5–6) of one candidate with the NaN-safe jerk: x (n_var,) → F (2,),
+    """``score`` (conventions §5–6) of one candidate with the NaN-safe jerk: x (n_var,) → F (2,),
     G (24,); differentiable everywhere the kernel is (G is piecewise smooth).
 
     Default: the full root chain, equal in value to :func:`dockjax.problem.score` except in
@@ -133,10 +135,10 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
     ref = materialize(span_angles(c, h))
     F = jnp.stack([jnp.sum(h), _safe_jerk(problem, c, h, ref)])
     if screen:
-        M = _maxima_screened(problem, c, h, ref)[0]
+        M = maxima_screened(problem, c, h, ref)[0]
     else:
-        M = _maxima(problem, c, h, ref)
-    return F, _columns(problem, M)
+        M = maxima(problem, c, h, ref)
+    return F, columns(problem, M)
 
 
 # -- projection onto the box with a time cap ----------------------------------------------
@@ -224,13 +226,10 @@ _score_rows = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))
 def _check_common(problem, steps, learning_rate, penalty, margin):
     if not isinstance(problem, DockingProblem):
         raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
-    for name, v in (("learning_rate", learning_rate), ("penalty", penalty)):
-        if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-    if not (isinstance(margin, (int, float, np.floating)) and math.isfinite(margin) and 0 <= margin < 0.5):
-        raise ValueError(f"margin must be in [0, 0.5), got {margin!r}")
+    checks.integer("steps", steps, 1)
+    checks.number("learning_rate", learning_rate, 0.0, open_lo=True)
+    checks.number("penalty", penalty, 0.0, open_lo=True)
+    checks.number("margin", margin, 0.0, 0.5, open_hi=True)
 
 
 def _bucket(n: int) -> int:
@@ -240,8 +239,7 @@ def _bucket(n: int) -> int:
 
 
 def _check_rows(rows):
-    if rows is not None and (isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1):
-        raise ValueError(f"rows must be a positive integer or None, got {rows!r}")
+    checks.optional_integer("rows", rows, 1)
 
 
 def _evaluate(problem, X, rows=None):
@@ -345,7 +343,7 @@ def refine(
 
 def straight_line(problem: DockingProblem, T) -> np.ndarray:
     """Decision vectors (len(T), n_var) of straight-line trajectories with equal intervals
-    ``T/6`` (interior control points evenly spaced from start to goal, SPEC §3)."""
+    ``T/6`` (interior control points evenly spaced from start to goal, conventions §3)."""
     T = np.atleast_1d(np.asarray(T, dtype=np.float64))
     h = np.repeat(T[:, None] / config.N_INTERVALS, config.N_INTERVALS, 1)
     if problem.reduced:
@@ -380,12 +378,9 @@ def best_known_front(
     """
     _check_common(problem, steps, learning_rate, penalty, margin)
     _check_rows(rows)
-    if isinstance(n_points, bool) or not isinstance(n_points, (int, np.integer)) or n_points < 2:
-        raise ValueError(f"n_points must be an integer >= 2, got {n_points!r}")
-    if isinstance(n_perturbed, bool) or not isinstance(n_perturbed, (int, np.integer)) or n_perturbed < 0:
-        raise ValueError(f"n_perturbed must be an integer >= 0, got {n_perturbed!r}")
-    if not (math.isfinite(perturbation) and 0 <= perturbation <= 0.5):
-        raise ValueError(f"perturbation must be in [0, 0.5], got {perturbation!r}")
+    checks.integer("n_points", n_points, 2)
+    checks.integer("n_perturbed", n_perturbed, 0)
+    checks.number("perturbation", perturbation, 0.0, 0.5)
     t0 = time.perf_counter()
     h_lo, h_hi = problem.interval_bounds
     n = config.N_INTERVALS

@@ -1,4 +1,4 @@
-"""The choice of one solution from a front (paper Eq. 26, SPEC §8).
+"""The choice of one solution from a front (paper Eq. 26, conventions §8).
 
 Each point of a front (minimised objectives) gets the weighted satisfaction
 
@@ -7,7 +7,7 @@ Each point of a front (minimised objectives) gets the weighted satisfaction
 the maxima and minima taken over the given points. δ is a *satisfaction* (1 at the ideal
 point, 0 at the nadir), so the chosen point **maximises** it. The paper says "minimised";
 minimising δ picks an end of a convex front (the worst point on the weighted objectives),
-which contradicts the paper's own Type 2/Type 3 choices, so SPEC §8 adopts the maximising
+which contradicts the paper's own Type 2/Type 3 choices, so conventions §8 adopts the maximising
 convention.
 
 The paper's three types, with the objectives ordered ``(T, jerk)``:

@@ -1,8 +1,8 @@
 """One decoded trajectory: pose and joints with their derivatives at any times, and CSV export.
 
 A :class:`Trajectory` is what :meth:`DockingProblem.decode` returns for one decision vector.
-The pose follows the quintic B-spline of SPEC §2 (exactly, through its per-span power
-series); the joints follow SPEC §4 (the right arm's axial, lift and lateral joints by
+The pose follows the quintic B-spline of conventions §2 (exactly, through its per-span power
+series); the joints follow conventions §4 (the right arm's axial, lift and lateral joints by
 Taylor-mode arithmetic, :mod:`dockjax.jets`).
 """
 
@@ -10,38 +10,37 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import bspline, config, jets
+from . import bspline, config, jets, kinematics
+from .config import DEG as _DEG
+from .decoding import decode
 from .io import atomic_write_text
-from .problem import _DEG, DockingProblem, decode
 
-__all__ = ["Trajectory", "atomic_write_text"]
+if TYPE_CHECKING:
+    from .problem import DockingProblem
+
+__all__ = ["Trajectory"]
 
 _SUFFIX = ("", "_vel", "_acc", "_jerk")
 _UNIT_POWER = ("", "/s", "/s^2", "/s^3")
 
 
 @jax.jit
-def _jets_at(problem: DockingProblem, x, t):
+def _jets_at(problem: "DockingProblem", x, t):
     """Pose jets (m, 6, 4) and joint jets (m, 8, 4) at times t (m,), orders 0..3."""
     h, u, c = decode(problem, x)
     inner = u[bspline.DEGREE + 1 : bspline.DEGREE + bspline.N_SPANS]
     k = jnp.searchsorted(inner, t, side="right")
     tau = t - u[bspline.DEGREE + k]
     pose = bspline.poly_taylor(jnp.swapaxes(c[k], 1, 2), tau[:, None], 3)  # (m, 6, 4)
-    px, py, pz, pa, pb, pg = (pose[:, i] for i in range(6))
-    sa, ca = (jets.stack(j) for j in jets.sin_cos(jets.terms(_DEG * pa)))
-    sb, cb = (jets.stack(j) for j in jets.sin_cos(jets.terms(_DEG * pb)))
-    d2 = problem.arm_distance
-    mul = lambda a, b: jets.stack(jets.mul(jets.terms(a), jets.terms(b)))  # noqa: E731
-    joints = jnp.stack(
-        [-pz, py, -px, pg, pz + d2 * mul(ca, cb), py + d2 * sa, -(px + d2 * mul(ca, sb)), -pg],
-        axis=1,
-    )
+    px, py, pz, pa, pb, pg = (pose[:, i] for i in range(6))  # stacked jets (m, 4)
+    axis = (jets.stack(u) for u in kinematics.cabin_axis_jets(jets.terms(_DEG * pa), jets.terms(_DEG * pb)))
+    joints = jnp.stack(kinematics.arm_joints(px, py, pz, pg, *axis, problem.arm_distance), axis=1)
     return jets.derivatives(pose), jets.derivatives(joints)
 
 
@@ -52,7 +51,7 @@ class Trajectory:
     ``control_points`` (11, 6), ``problem``.
     """
 
-    def __init__(self, problem: DockingProblem, x: np.ndarray):
+    def __init__(self, problem: "DockingProblem", x: np.ndarray):
         self.problem = problem
         self.x = np.asarray(x, dtype=np.float64)
         self.intervals = self.x[: config.N_INTERVALS].copy()
@@ -96,7 +95,7 @@ class Trajectory:
         return self._eval(t, derivative)[0]
 
     def joints(self, t, derivative: int = 0) -> np.ndarray:
-        """The eight joints (SPEC §4 order) or a time derivative (0..3) at t: (m, 8)."""
+        """The eight joints (conventions §4 order) or a time derivative (0..3) at t: (m, 8)."""
         return self._eval(t, derivative)[1]
 
     def sample_times(self, rate: float) -> np.ndarray:

@@ -1,9 +1,11 @@
-"""Score a random population of the docking problem and print the best feasible candidates.
+"""Score a random population and print the best feasible candidates: ``dockjax demo``.
 
     python experiments/demo.py --n 100000
 """
 
-from dockjax.cli import demo_main
+import sys
+
+from dockjax.cli import main
 
 if __name__ == "__main__":
-    demo_main()
+    sys.exit(main(["demo", *sys.argv[1:]]))

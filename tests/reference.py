@@ -1,4 +1,4 @@
-"""An independent reference for the docking problem, built from ``SPEC.md`` alone.
+"""An independent reference for the docking problem, built from ``docs/conventions.md`` alone.
 
 Nothing here imports ``dockjax``: the trajectory is a ``scipy.interpolate.BSpline``, the
 joint derivatives of the right arm follow from an explicit chain rule written with complex
@@ -8,8 +8,8 @@ local refinement around the largest sample. Tests compare ``dockjax`` with this 
 later issues call :func:`dense_feasible` "the dense check" to certify optimiser results.
 
 Units: seconds, millimetres, degrees (radians only inside trig calls).
-Decision vector (SPEC §3): ``x = [h_1..h_6, d_3[0..5], …, d_7[0..5]]`` (36,).
-Joint order (SPEC §4): ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``.
+Decision vector (conventions §3): ``x = [h_1..h_6, d_3[0..5], …, d_7[0..5]]`` (36,).
+Joint order (conventions §4): ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``.
 Limits are per arm joint ``(axial, lift, lateral, roll)``, length 4 (both arms) or 8.
 """
 
@@ -27,7 +27,7 @@ N_JOINTS = 8
 N_VAR = N_INTERVALS + N_FREE * N_POSE
 N_CON = 3 * N_JOINTS
 
-# Zero-move box half-margins (SPEC §3): 1 mm for positions, 0.01° for angles.
+# Zero-move box half-margins (conventions §3): 1 mm for positions, 0.01° for angles.
 ZERO_MOVE_MARGIN = np.array([1.0, 1.0, 1.0, 0.01, 0.01, 0.01])
 
 __all__ = [
@@ -138,7 +138,7 @@ def _joints_from_pose_derivatives(pd: np.ndarray, arm_distance: float) -> np.nda
 
 
 def joints_of_pose(pose, arm_distance: float) -> np.ndarray:
-    """Inverse kinematics (SPEC §4) of poses (..., 6) → joints (..., 8)."""
+    """Inverse kinematics (conventions §4) of poses (..., 6) → joints (..., 8)."""
     pose = np.asarray(pose, dtype=np.float64)
     flat = pose.reshape(1, -1, N_POSE)
     return _joints_from_pose_derivatives(flat, arm_distance)[0].reshape(pose.shape[:-1] + (8,))
@@ -174,7 +174,7 @@ def expand_limits(travel, velocity, acceleration) -> np.ndarray:
 
 
 def reference_bounds(start, goal, interval_bounds=(3.5, 10.0), margin: float = 0.1):
-    """Box ``(lower, upper)`` (36,) each, per SPEC §3."""
+    """Box ``(lower, upper)`` (36,) each, per conventions §3."""
     start, goal = _as_pose(start), _as_pose(goal)
     delta = goal - start
     m = np.where(delta == 0.0, ZERO_MOVE_MARGIN, margin * np.abs(delta))
@@ -199,7 +199,7 @@ def straight_line_x(start, goal, h=(10.0,) * 6) -> np.ndarray:
 
 
 def reference_objectives(x, start, goal, arm_distance: float, nodes: int = 20):
-    """``(T, jerk)``: T = Σ h; jerk = Σ_j sqrt((1/T) ∫_0^T q_j'''(t)² dt) (SPEC §5).
+    """``(T, jerk)``: T = Σ h; jerk = Σ_j sqrt((1/T) ∫_0^T q_j'''(t)² dt) (conventions §5).
 
     The integral is Gauss–Legendre with ``nodes`` nodes per knot span (exact for the
     polynomial joints, converged to round-off for the right arm's trig joints).
@@ -263,7 +263,7 @@ def dense_constraints(
     home=None,
     n_samples: int = 20001,
 ) -> np.ndarray:
-    """G (24,) per SPEC §6 by the dense check: column ``3j + k`` = max_t |quantity|/limit − 1.
+    """G (24,) per conventions §6 by the dense check: column ``3j + k`` = max_t |quantity|/limit − 1.
 
     travel/velocity/acceleration: length 4 (per arm joint axial, lift, lateral, roll; the
     same for both arms) or 8 (per joint). home: (8,) or None (midpoint of start and goal).

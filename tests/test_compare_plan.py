@@ -90,7 +90,7 @@ def _check_best_known_front_beats_every_run_and_is_dense_feasible(folder):
         F, front = raw[f"{a}_F"], raw[f"{a}_front"]
         for i in range(F.shape[0]):
             assert _hv(F[i][front[i]], ref) <= hv_best, (a, i)
-    # every algorithm's final feasible set passes the independent dense check (issue 3)
+    # every algorithm's final feasible set passes the independent dense check
     for a in ("imocs", "nsga2", "mocs", "mopso", "imocs+refine"):
         X, G = raw[f"{a}_X"].reshape(-1, p.n_var), raw[f"{a}_G"].reshape(-1, p.n_con)
         feasible = np.all(G <= 0, 1)
@@ -131,7 +131,7 @@ def test_compare_rejects_bad_input_with_exit_2(tmp_path, args, needle):
 
 
 PLAN_ARGS = ["--pop", "16", "--iters", "8", "--rate", "200", *ONE_DEVICE]
-NO_REFINE = ["--no-refine"]
+NO_REFINE = ["--refine-steps", "0"]
 
 
 @pytest.fixture(scope="module")
@@ -170,7 +170,7 @@ def test_plan_writes_four_files_and_a_controller_ready_csv(plan_out):
     assert np.max(np.abs(fd - joints[1:-2, :, 1]) / scale) < 1e-3
     for name, j in summary["joints"].items():
         assert j["velocity_margin"] >= 0 and j["acceleration_margin"] >= 0 and j["travel_margin"] >= 0
-    assert summary["settings"]["refine"] is True
+    assert summary["settings"]["refine_steps"] == 300
 
 
 def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path):
@@ -217,7 +217,7 @@ def test_python_api_returns_the_certified_trajectory_as_arrays():
     from dockjax.plan import plan
 
     # the CLI test's settings: the same compiled run, reused through the persistent cache
-    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine=False)
+    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine_steps=0)
     assert p.samples["position"].shape == (len(p.samples["t"]), 8)
     assert math.isclose(p.samples["t"][-1], p.T)
 
@@ -228,11 +228,12 @@ def test_write_plan_labels_the_front_with_the_algorithm_that_made_it(tmp_path, m
     from dockjax import plots
     from dockjax.plan import plan, write_plan
 
-    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine=False)  # as the test above
+    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine_steps=0)  # as the test above
     labels = []
     real = plots.plot_fronts
-    monkeypatch.setattr(plots, "plot_fronts", lambda fronts, *a, **k: labels.append(list(fronts)) or real(fronts, *a, **k))
-    for algorithm, refine, want in (("nsga2", False, "nsga2"), ("mopso", True, "mopso+refine")):
-        write_plan(dataclasses.replace(p, settings={**p.settings, "algorithm": algorithm, "refine": refine}),
+    monkeypatch.setattr(plots, "plot_fronts",
+                        lambda fronts, *a, **k: labels.append(list(fronts)) or real(fronts, *a, **k))
+    for algorithm, steps, want in (("nsga2", 0, "nsga2"), ("mopso", 300, "mopso+refine")):
+        write_plan(dataclasses.replace(p, settings={**p.settings, "algorithm": algorithm, "refine_steps": steps}),
                    tmp_path / algorithm)
         assert labels[-1] == [want]

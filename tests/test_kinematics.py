@@ -1,4 +1,4 @@
-"""Kinematics (paper §2, Eqs. 1–15; SPEC §4) against the closed forms and the reference."""
+"""Kinematics (paper §2, Eqs. 1–15; conventions §4) against the closed forms and the reference."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 References: pymoo 0.6.2's NSGA-II on its own ZDT1 for NSGA-II; for MOPSO (absent from
 pymoo) a sequential NumPy implementation of Coello et al. 2004 written below from
-ALGORITHMS.md and the paper's reference code (particles enter the repository one at a time,
+conventions §10 and the paper's reference code (particles enter the repository one at a time,
 the grid is recomputed only when needed, the crowded-cube member is replaced at random).
 IGD is plain NumPy against 1000 points of ZDT1's analytic front. Runs are float64 and each
 algorithm compiles once for its five seeds (vmapped).
@@ -10,6 +10,7 @@ algorithm compiles once for its five seeds (vmapped).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -19,8 +20,8 @@ import pytest
 
 from dockjax import pareto
 from dockjax.algorithms import base, mopso, nsga2, variation
-from dockjax.algorithms.base import ZDT1
 from dockjax.algorithms.variation import binary_tournament
+from dockjax.algorithms.zdt import ZDT1
 
 # Jitted once per shape: one compiled program each instead of many eager primitives.
 sbx = jax.jit(variation.sbx)
@@ -180,13 +181,13 @@ jax.tree_util.register_pytree_node(
 
 
 @pytest.mark.parametrize("algo,params", [
-    (nsga2, nsga2.Params(pop_size=7)),  # odd population: ceil(7/2) pairs, one child dropped
-    (mopso, mopso.Params(pop_size=6, max_iter=3)),
+    (nsga2.ALGORITHM, nsga2.Params(pop_size=7)),  # odd population: ceil(7/2) pairs, one child dropped
+    (mopso.ALGORITHM, mopso.Params(pop_size=6, max_iter=3)),
 ])
 def test_init_and_step_evaluate_exactly_pop_size_candidates(algo, params):
     # Traced only (eval_shape): the evaluation count is a property of the program.
     problem = CountingZDT1(n_var=4)
-    algo.validate(problem, params)
+    algo.validate(params)
     CountingZDT1.calls.clear()
     state = jax.eval_shape(lambda k: algo.init(k, problem, params), jax.random.key(0))
     assert CountingZDT1.calls == [params.pop_size]
@@ -201,28 +202,28 @@ def test_init_and_step_evaluate_exactly_pop_size_candidates(algo, params):
 
 
 @pytest.mark.parametrize("bad", [
-    dict(eta_c=0.0), dict(eta_c=-1.0), dict(p_c=1.5), dict(p_c=-0.1), dict(eta_m=0.0),
-    dict(p_m=2.0), dict(p_m=-0.5), dict(pop_size=3), dict(eta_c=float("nan")),
+    dict(eta_c=0.0), dict(eta_c=-1.0), dict(p_crossover=1.5), dict(p_crossover=-0.1), dict(eta_m=0.0),
+    dict(p_mutation=2.0), dict(p_mutation=-0.5), dict(pop_size=3), dict(eta_c=float("nan")),
 ])
 def test_nsga2_validate_rejects_bad_hyper_parameters(bad):
     with pytest.raises(ValueError):
-        nsga2.validate(ZDT1(), nsga2.Params(**bad))
+        base.validate_params(nsga2.Params(**bad))
 
 
 @pytest.mark.parametrize("bad", [
-    dict(w=-0.1), dict(w=1.5), dict(p_m=1.5), dict(n_div=0), dict(max_iter=0),
+    dict(w=-0.1), dict(w=1.5), dict(mutation_rate=1.5), dict(n_div=0), dict(max_iter=0),
     dict(pop_size=2),
 ])
 def test_mopso_validate_rejects_bad_hyper_parameters(bad):
     with pytest.raises(ValueError):
-        mopso.validate(ZDT1(), mopso.Params(**bad))
+        base.validate_params(mopso.Params(**bad))
 
 
 def test_validate_accepts_defaults_and_the_one_over_n_sentinel():
-    nsga2.validate(ZDT1(), nsga2.Params())
-    nsga2.validate(ZDT1(), nsga2.Params(pop_size=5, p_m=0.1))
-    nsga2.validate(ZDT1(), nsga2.Params(p_m=np.array([-1.0, 0.2])))  # a batch of values
-    mopso.validate(ZDT1(), mopso.Params())
+    base.validate_params(nsga2.Params())
+    base.validate_params(nsga2.Params(pop_size=5, p_mutation=0.1))
+    base.validate_params(nsga2.Params(p_mutation=np.array([-1.0, 0.2])))  # a batch of values
+    base.validate_params(mopso.Params())
 
 
 def test_repository_truncation_empties_the_most_crowded_cube_first():
@@ -257,7 +258,7 @@ def test_repository_rejects_dominated_and_duplicate_members():
     np.testing.assert_allclose(got, [[0.0, 1.0], [0.5, 0.5], [1.0, 0.0], [0.2, 0.9]], atol=1e-6)
     # Constrained: a feasible member evicts every infeasible one.
     cv = jnp.asarray([0.0, 0.3, 0.0, 0.1, 0.2, 0.0])
-    cand = base.replace(cand, cv=cv)
+    cand = dataclasses.replace(cand, cv=cv)
     repo, valid = _update_repository(empty, jnp.zeros(4, bool), cand, n_div=30)
     assert np.all(np.asarray(repo.cv)[np.asarray(valid)] == 0)
     assert np.all(np.isinf(np.asarray(repo.cv)[~np.asarray(valid)]))
@@ -297,7 +298,7 @@ def test_host_driver_equals_the_scan_driver(name):
     program, and ``"host"``, a Python loop of ask, one kernel call for every run, tell —
     must give the same final populations and histories, up to rounding (the programs fuse
     differently); per-run hyper-parameters included."""
-    from dockjax.algorithms import optimize
+    from dockjax.optimize import optimize
 
     kw = dict(seeds=[3, 4, 5], pop_size=10, n_iter=4, hv_ref=np.array([1.2, 6.0]),
               batch_params={"rho": [0.3, 0.4, 0.6]} if name == "imocs" else {})
@@ -323,7 +324,7 @@ def test_host_driver_equals_the_scan_driver(name):
 def test_bad_device_counts_are_rejected(bad, match):
     """The test processes have one CPU device (the two-device path is checked in a
     subprocess, tests/test_xla_settings.py)."""
-    from dockjax.algorithms import optimize
+    from dockjax.optimize import optimize
 
     assert len(jax.local_devices()) == 1
     with pytest.raises(ValueError, match=match):
@@ -350,7 +351,7 @@ def _batched(algo, params):
 @functools.lru_cache(maxsize=None)
 def nsga2_runs():
     with jax.enable_x64(True):
-        run_fn, keys = _batched(nsga2, nsga2.Params(pop_size=POP))
+        run_fn, keys = _batched(nsga2.ALGORITHM, nsga2.Params(pop_size=POP))
         first = _to_numpy(run_fn(keys))
         again = _to_numpy(run_fn(keys))
     return first, again
@@ -359,7 +360,7 @@ def nsga2_runs():
 @functools.lru_cache(maxsize=None)
 def mopso_runs():
     with jax.enable_x64(True):
-        run_fn, keys = _batched(mopso, mopso.Params(pop_size=POP, max_iter=ITERS))
+        run_fn, keys = _batched(mopso.ALGORITHM, mopso.Params(pop_size=POP, max_iter=ITERS))
         first = _to_numpy(run_fn(keys))
         again = _to_numpy(run_fn(keys))
     return first, again

@@ -1,7 +1,7 @@
 """DockingProblem against the independent reference of ``tests/reference.py``.
 
 Objectives must agree to 1e-9 relative; every constraint column must lie in
-``[dense − 1e-9, dense + 0.01]`` (SPEC §6: never understate, overstate by at most 0.01),
+``[dense − 1e-9, dense + 0.01]`` (conventions §6: never understate, overstate by at most 0.01),
 where ``dense`` is the reference's dense check (≥ 1e4 samples plus every knot).
 """
 
@@ -160,7 +160,7 @@ def _paper_like_config(seed):
      (4, "auto"), (1, "adaptive")],
 )
 def test_right_arm_modes_match_reference(seed, right_arm):
-    """Every way of finding the right arm's nonlinear maxima meets SPEC §6 where it claims
+    """Every way of finding the right arm's nonlinear maxima meets conventions §6 where it claims
     to: "bound" on paper-sized attitude changes (tenths of a degree), "taylor" anywhere."""
     rng = np.random.default_rng(2000 + (0 if seed == "paper" else seed + 1))
     cfg = dict(DEFAULT) if seed == "paper" else _paper_like_config(seed)
@@ -173,7 +173,7 @@ def test_right_arm_modes_match_reference(seed, right_arm):
 
 
 def test_evaluate_covers_at_least_200_candidates():
-    """Bookkeeping for the issue: the parametrised comparison above sees ≥ 200 candidates."""
+    """The parametrised comparison above sees at least 200 candidates."""
     assert (1 + len(CONFIG_SEEDS) + 6 + 6) * BATCH >= 200
 
 
@@ -191,7 +191,7 @@ def test_evaluate_without_caller_x64_returns_float64_and_leaves_flag():
 
 
 def test_jerk_nodes_follow_the_attitude_range_and_reach_1e9():
-    """SPEC §5: the right arm's jerk integral to 1e-9 relative. The Gauss–Legendre nodes per
+    """conventions §5: the right arm's jerk integral to 1e-9 relative. The Gauss–Legendre nodes per
     span come from the box's range of pitch and yaw: 8 for the paper's box; 12 for a box of
     2.6° (tests/test_properties.py), where hypothesis found a candidate — a 0.5 s span
     sweeping the whole pitch range — on which 8 nodes miss 1e-9; 24 beyond 8°. No kernel
@@ -370,7 +370,7 @@ def test_decode_matches_reference():
             scale_q = max(1.0, np.abs(qd[k]).max())
             np.testing.assert_allclose(pose, pd[k], rtol=1e-9, atol=1e-9 * scale_p)
             np.testing.assert_allclose(q, qd[k], rtol=1e-9, atol=1e-9 * scale_q)
-        # boundary conditions of SPEC §2
+        # boundary conditions of conventions §2
         np.testing.assert_allclose(np.asarray(traj.pose([0.0]))[0], cfg["start"], atol=1e-9)
         np.testing.assert_allclose(np.asarray(traj.pose([traj.T]))[0], cfg["goal"], atol=1e-9)
         for k in (1, 2):

@@ -1,4 +1,4 @@
-"""Invariances of the objectives (SPEC §2, §5) checked with hypothesis.
+"""Invariances of the objectives (conventions §2, §5) checked with hypothesis.
 
 Problems are built from a few fixed configurations (cached), so that hypothesis varies the
 candidates and not the compiled kernel.
@@ -105,5 +105,5 @@ def test_reversing_keeps_both_objectives(cfg, h, fractions):
     Fr, Gr = _evaluate(q, [xr])
     np.testing.assert_allclose(Fr, F, rtol=1e-9)
     # the reversed motion visits the same states backwards: same maxima about the same home
-    # (each column may overstate by up to 0.01, SPEC §6, so only that much may differ)
+    # (each column may overstate by up to 0.01, conventions §6, so only that much may differ)
     np.testing.assert_allclose(Gr, G, rtol=0, atol=0.01 + 1e-9)

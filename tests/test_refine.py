@@ -24,11 +24,11 @@ def problem():
 
 @pytest.fixture(scope="module")
 def imocs_result(problem):
-    from dockjax.algorithms import optimize
-    from dockjax.study import hv_reference
+    from dockjax.comparison import hv_reference
+    from dockjax.optimize import optimize
 
     # the very call of the compare.py test (same shapes: one compilation, shared through
-    # the persistent cache of the test session)
+    # the persistent compilation cache of the test run)
     return optimize("imocs", problem, seeds=[0, 1], pop_size=8, n_iter=3, hv_ref=hv_reference(problem))
 
 
@@ -138,7 +138,7 @@ def test_refine_rejects_bad_population(problem):
 
 @pytest.fixture(scope="module")
 def memetic(problem, imocs_result):
-    from dockjax.algorithms import refine_result
+    from dockjax.optimize import refine_result
 
     return imocs_result, refine_result(problem, imocs_result, steps=60)  # 16 rows: compiled above
 
@@ -163,7 +163,7 @@ def test_memetic_finish_never_worsens_a_member_and_raises_each_runs_hypervolume(
 
 
 def test_optimize_rejects_negative_refine_steps(problem):
-    from dockjax.algorithms import optimize
+    from dockjax.optimize import optimize
 
     with pytest.raises(ValueError, match="refine_steps"):
         optimize("imocs", problem, pop_size=16, n_iter=5, refine_steps=-1)

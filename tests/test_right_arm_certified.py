@@ -1,4 +1,4 @@
-"""The right arm's limit columns are certified in every mode, screened or not (SPEC §6).
+"""The right arm's limit columns are certified in every mode, screened or not (conventions §6).
 
 The right arm's axial, lift and lateral joints go through sin/cos of pitch and yaw, so
 their extrema have no closed form. Whatever the treatment (``right_arm`` = ``"auto"``,
@@ -31,18 +31,19 @@ BELOW = 1e-10
 """How far (units of the limit) a column may be below the dense lower bound: rounding of
 the reference itself (the kernel adds 1e-9 to every column)."""
 ABOVE = 0.01
-"""SPEC §6: the most a column may overstate."""
+"""conventions §6: the most a column may overstate."""
 ROWS = 4
 JERK_NODES = 24
 """One node count for every drawn configuration: one compiled kernel per mode."""
 MODES = ("bound", "adaptive", "taylor")
 N_DENSE = 20001
 
-# the regression case: evaluate gave d_R1 velocity -0.999714240 in the "exact" and
-# "adaptive" modes; 400,001 samples of the true joint reach -0.999645777
-ISSUE_CFG = dict(start=(760.0, -20.0, -1400.0, 0.9, 0.3, 185.0), goal=(760.0, -20.0, -1400.0, -0.9, -0.2, 185.0),
+# a regression case: a 1.8° attitude move with D2 = 3 m, where 400,001 samples of the true
+# d_R1 velocity reach -0.999645777 of its limit (an evaluation of the true joint at a
+# locally polished critical time, a lower bound, gave -0.999714240)
+REGRESSION_CFG = dict(start=(760.0, -20.0, -1400.0, 0.9, 0.3, 185.0), goal=(760.0, -20.0, -1400.0, -0.9, -0.2, 185.0),
                  arm_distance=3000.0, interval_bounds=(5.0, 12.0))
-ISSUE_X = np.array([
+REGRESSION_X = np.array([
     5.9786621506, 7.9344206743, 5.4685484739, 10.592331406, 9.8779460837, 5.4756596795,
     760.11078594, -19.185380077, -1399.7925964, -0.99033280967, -0.20784409924, 185.00587187,
     759.21109910, -20.042615773, -1399.3941582, -0.52670775764, -0.018437752652, 185.00392162,
@@ -158,17 +159,17 @@ def test_right_arm_columns_are_certified_in_every_mode(pos, att, move, log_d2, l
     _check(p_auto, problems, X, f"start={start}, goal={goal}, D2={d2}, interval_bounds={bounds}, travel={travel}")
 
 
-def test_issue_example_is_exact_to_the_reference():
+def test_regression_case_is_exact_to_the_reference():
     """The regression case: every mode is at or above 100,001 samples of the true joint,
     and the unscreened ``"taylor"`` and ``"adaptive"`` columns are within 2e-8 of the limit
     of its largest sample (locally refined: exact to rounding at this spacing)."""
     travel = (600.0, 50.0, 50.0, 15.0)
-    lower, upper = dense_bracket(DockingProblem(**ISSUE_CFG), ISSUE_X, 100001)
+    lower, upper = dense_bracket(DockingProblem(**REGRESSION_CFG), REGRESSION_X, 100001)
     assert -0.99964578 < lower[13] < -0.99964577
     for mode in ("auto", *MODES):
-        p = DockingProblem(**ISSUE_CFG, travel=travel, right_arm=mode, jerk_nodes=JERK_NODES)
+        p = DockingProblem(**REGRESSION_CFG, travel=travel, right_arm=mode, jerk_nodes=JERK_NODES)
         for screen in (True, False):
-            G = p.evaluate(ISSUE_X[None], screen=screen)[1][0]
+            G = p.evaluate(REGRESSION_X[None], screen=screen)[1][0]
             assert np.all(G >= lower - BELOW), (mode, screen, np.min(G - lower))
             if mode != "bound":
                 assert np.all(G <= upper + ABOVE)

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from dockjax import DockingProblem, extrema
+from dockjax import DockingProblem, extrema, limits
 from dockjax import problem as P
 
 
@@ -105,7 +105,7 @@ def test_screened_columns_against_the_full_chain(preset):
     np.testing.assert_array_equal(Fs, Ff)
     d = Gs - Gf
     assert d.min() >= -1e-12, "a screened column is below the exact maximum"
-    assert d.max() <= P.SCREEN_SLACK + 1e-12, "a screened column overstates by more than 0.009"
+    assert d.max() <= limits.SCREEN_SLACK + 1e-12, "a screened column overstates by more than 0.009"
     near = np.abs(Gf) <= 0.02
     assert near.sum() >= 20, near.sum()  # the sets do reach the limits
     assert np.abs(d[near]).max() <= 1e-12, "a column near its limit is not exact"

@@ -1,4 +1,4 @@
-"""Resumable hyper-parameter sweeps (dockjax.sweep, experiments/sweep.py).
+"""Resumable hyper-parameter sweeps (dockjax.sweep, ``dockjax sweep``, experiments/sweep.py).
 
 Tiny settings throughout (pop 8, 3 iterations, 2 × 2 grid, 2 seeds, chunks of 2 → 4 chunks).
 The end-to-end runs are subprocesses of the real CLI; they share JAX's persistent
@@ -18,13 +18,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dockjax import sweep
+from dockjax import cli, sweep
+from dockjax.sweep.config import PILOT_SEED0
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "experiments" / "sweep.py"
 TINY = ["--pop", "8", "--iters", "3", "--rho", "0.3", "0.5", "--alpha-max", "0.1", "0.2",
         "--seeds", "2", "--chunk", "2", "--no-progress"]
 FIGURES = ("heatmap_hv_pop8.png", "hv_vs_pop.png", "fronts_best_worst.png")
+
+
+def _main(argv: list[str]) -> int:
+    return cli.main(["sweep", *argv])
 
 
 def _env(**extra) -> dict:
@@ -118,12 +123,12 @@ def test_dask_backend_gives_the_same_table(uninterrupted, tmp_path):
 def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
     out, _ = uninterrupted
     listing = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
-    code = sweep.main([*TINY, "--rho", "0.3", "--out", str(out)])
+    code = _main([*TINY, "--rho", "0.3", "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2
     assert "different sweep configuration" in err and "rho" in err and len(err.strip().splitlines()) == 1
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == listing
-    assert sweep.main([*TINY, "--chunk", "3", "--out", str(out)]) == 2
+    assert _main([*TINY, "--chunk", "3", "--out", str(out)]) == 2
     assert "chunk" in capsys.readouterr().err
 
 
@@ -138,11 +143,11 @@ def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
     (["--seeds", "0"], "--seeds must be >= 1"),
     (["--refine-steps", "-1"], "--refine-steps must be >= 0"),
     (["--scheduler", "tcp://localhost:1"], "--scheduler needs --backend dask"),
-    (["--devices", "0"], "--devices must be >= 1"),
+    (["--devices", "0"], "--devices must be an integer >= 1"),
 ])
 def test_bad_input_exits_2_before_compiling_and_leaves_no_folder(tmp_path, capsys, extra, message):
     out = tmp_path / "new" / "sweep"
-    code = sweep.main([*TINY, *extra, "--out", str(out)])
+    code = _main([*TINY, *extra, "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2
     assert message in err and err.startswith("error: ") and len(err.strip().splitlines()) == 1
@@ -152,14 +157,14 @@ def test_bad_input_exits_2_before_compiling_and_leaves_no_folder(tmp_path, capsy
 def test_unwritable_folder_exits_2(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
-    assert sweep.main([*TINY, "--out", str(blocker / "sweep")]) == 2
+    assert _main([*TINY, "--out", str(blocker / "sweep")]) == 2
     assert "cannot be created" in capsys.readouterr().err
-    assert sweep.main([*TINY, "--out", str(blocker)]) == 2
+    assert _main([*TINY, "--out", str(blocker)]) == 2
     assert "is not a folder" in capsys.readouterr().err
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("x")
-    assert sweep.main([*TINY, "--out", str(other)]) == 2
+    assert _main([*TINY, "--out", str(other)]) == 2
     assert "holds no sweep" in capsys.readouterr().err
     assert sorted(p.name for p in other.iterdir()) == ["notes.txt"]
 
@@ -188,7 +193,7 @@ def test_plan_is_balanced_padded_and_deterministic():
     assert [(len(c.seeds), c.n_real) for c in odd] == [(2, 2), (2, 1)]
     assert odd[-1].seeds == (0, 0) and odd[-1].alpha_max == (0.3, 0.3)  # padded with its own run
     pilot = sweep.pilot_spec(cfg)
-    assert len(pilot.seeds) == 9 and pilot.pop == 12 and min(pilot.seeds) >= sweep.PILOT_SEED0
+    assert len(pilot.seeds) == 9 and pilot.pop == 12 and min(pilot.seeds) >= PILOT_SEED0
 
 
 def test_other_algorithms_collapse_the_grid():
@@ -196,8 +201,7 @@ def test_other_algorithms_collapse_the_grid():
     plan = sweep.plan_chunks(cfg)
     assert cfg.n_runs() == 6 and len(plan) == 2
     assert all(math.isnan(r) for c in plan for r in c.rho)
-    args = sweep.SweepArgs(algorithm="mopso", rho=(0.3, 0.4), alpha_max=(0.1,), pop=(8,))
-    made, _ = sweep.make_config(args)
+    made, _ = sweep.make_config(algorithm="mopso", rho=(0.3, 0.4), alpha_max=(0.1,), pop=(8,))
     assert made.rho is None and made.alpha_max is None and len(made.settings()) == 1
 
 
@@ -206,14 +210,13 @@ def test_reference_front_file(tmp_path):
     path.write_text("T,jerk\n40,1\n35,2\n36,3\n30,5\n")
     F = sweep.load_front_file(path)
     np.testing.assert_array_equal(F, [[30, 5], [35, 2], [40, 1]])  # (36, 3) is dominated
-    args = sweep.SweepArgs(reference_front=path)
-    cfg, front = sweep.make_config(args)
+    cfg, front = sweep.make_config(reference_front=path)
     assert cfg.reference["kind"] == "file" and cfg.reference["points"] == 3
     np.testing.assert_array_equal(front, F)
     bad = tmp_path / "bad.csv"
     bad.write_text("1,2,3\n")
     with pytest.raises(sweep.ConfigError, match="reference-front"):
-        sweep.make_config(sweep.SweepArgs(reference_front=bad))
+        sweep.make_config(reference_front=bad)
 
 
 def test_memetic_option_is_part_of_the_configuration():

@@ -20,7 +20,8 @@ jax.config.update("jax_num_cpu_devices", 2)
 import jax.numpy as jnp
 import numpy as np
 from dockjax import extrema
-from dockjax.algorithms import ZDT1, optimize
+from dockjax.algorithms.zdt import ZDT1
+from dockjax.optimize import optimize
 
 out = {"devices": len(jax.local_devices())}
 kw = dict(seeds=[3, 4, 5], pop_size=10, n_iter=4, hv_ref=np.array([1.2, 6.0]),
@@ -64,8 +65,8 @@ np.savez(sys.argv[1], **out)
 
 @pytest.fixture(scope="module")
 def other_process(tmp_path_factory, worker_id):
-    """The subprocess's results, computed once per test session: pytest-xdist workers share
-    them through a file in the session's temporary folder, under a lock (the pattern of
+    """The subprocess's results, computed once per pytest run: pytest-xdist workers share
+    them through a file in the run's temporary folder, under a lock (the pattern of
     pytest-xdist's documentation; without ``fcntl`` every worker computes its own)."""
     base = tmp_path_factory.getbasetemp()
     root = base if worker_id == "master" else base.parent
@@ -129,7 +130,7 @@ def test_evaluate_shared_over_two_devices_equals_one_device(other_process):
     other places of the vectorised loops); with it, F likewise, and each G column within
     the screen's allowance (a row may be re-scored by the full chain in one layout and not
     the other, and both values are valid)."""
-    from dockjax.problem import SCREEN_SLACK
+    from dockjax.limits import SCREEN_SLACK
 
     o = other_process
     for screen in ("True", "False"):

@@ -1,52 +1,43 @@
-"""What every optimiser shares: the problem contract, the unit box, the run loop.
+"""The algorithm contract, stated in one type, and what every optimiser shares.
 
-Every algorithm is a module with a ``Params`` pytree (hyper-parameters; the population size
-is a static field, since it fixes shapes), a ``State`` pytree, and two pure functions in the
-style of optax/evosax::
-
-    init(key, problem, params) -> State
-    step(state, problem, params) -> State
-
-each the composition of an ask/tell pair around one evaluation of ``pop_size`` candidates
-(in the style of evosax)::
+An optimiser is an :class:`Algorithm`: a name, a ``Params`` pytree of hyper-parameters
+(every field annotated with its symbol and allowed range, :func:`param`; the population
+size is static, since it fixes shapes), a ``State`` pytree, and four pure functions in the
+style of optax and evosax around one evaluation of ``pop_size`` candidates::
 
     init_ask(key, problem, params) -> (U, key)      init_tell(key, pop, params) -> State
     ask(state, problem, params) -> (U, state)       tell(state, pop, params) -> State
+    final_population(state) -> Population
 
-``run(algorithm, key, problem, params, n_iter)`` drives them with ``lax.scan``; it jits,
-and ``jax.vmap`` over keys or over ``Params`` leaves (ρ, α_max, …) runs many runs in one
-compiled call. All algorithms search in the unit box (SPEC §7) and evaluate exactly
-``pop_size`` new candidates per iteration (equal budgets).
+from which ``init`` and ``step`` follow (ask, score, tell). ``run(algorithm, key, problem,
+params, n_iter)`` drives them with ``lax.scan``; it jits, and ``jax.vmap`` over keys or over
+``Params`` leaves (ρ, α_max, …) runs many runs in one compiled call. All algorithms search
+in the unit box (conventions §7) and evaluate exactly ``pop_size`` new candidates per
+iteration (equal budgets).
 
 A *problem* is any object with ``n_var``, ``n_obj``, ``n_con``, ``lower``, ``upper``
-(NumPy, natural units) and ``evaluate_jax(X) -> (F, G)`` (traceable; ``G`` may have 0
-columns); :class:`dockjax.DockingProblem` and :class:`ZDT1` are such problems. It is passed
-to ``jit`` as a pytree (its arrays are traced, its shape information static).
+(natural units) and ``evaluate_jax(X) -> (F, G)`` (traceable; ``G`` may have 0 columns);
+:class:`dockjax.DockingProblem` and :class:`dockjax.algorithms.zdt.ZDT1` are such problems.
+It is passed to ``jit`` as a pytree (its arrays are traced, its shape information static).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from types import ModuleType
-from typing import Callable
+import math
+from dataclasses import field
+from typing import Any, Callable, NamedTuple, Protocol
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import pareto
+from .. import checks, pareto
 from ..pytrees import pytree_dataclass, static
 
 __all__ = [
-    "pytree_dataclass",
-    "static",
-    "Population",
-    "evaluate_unit",
-    "evaluate_runs",
-    "to_natural",
-    "validate_common",
-    "ZDT1",
-    "hypervolume_2d",
+    "Algorithm", "Population", "param", "validate_params", "pytree_dataclass", "static", "evaluate_unit",
+    "evaluate_runs", "to_natural", "uniform_init_ask", "merge_and_survive", "run", "run_batch",
 ]
 
 
@@ -58,6 +49,106 @@ class Population:
     F: jax.Array
     G: jax.Array
     cv: jax.Array
+
+
+class InitAsk(Protocol):
+    def __call__(self, key: jax.Array, problem: Any, params: Any) -> tuple[jax.Array, jax.Array]:
+        """The initial candidates ``U`` (pop_size, n_var) in the unit box, and the key left."""
+
+
+class InitTell(Protocol):
+    def __call__(self, key: jax.Array, pop: Population, params: Any) -> Any:
+        """The first state, from the scored initial candidates."""
+
+
+class Ask(Protocol):
+    def __call__(self, state: Any, problem: Any, params: Any) -> tuple[jax.Array, Any]:
+        """The next ``pop_size`` candidates to score, and the state (its key advanced)."""
+
+
+class Tell(Protocol):
+    def __call__(self, state: Any, pop: Population, params: Any) -> Any:
+        """The state after the scored candidates ``pop`` are taken in."""
+
+
+class FinalPopulation(Protocol):
+    def __call__(self, state: Any) -> Population:
+        """The algorithm's output set (a repository for MOPSO, the population otherwise)."""
+
+
+class Algorithm(NamedTuple):
+    """An optimiser (see the module docstring). Hashable, so it is a static argument of a
+    compiled program; :data:`dockjax.algorithms.ALGORITHMS` holds the four of the paper."""
+
+    name: str
+    Params: type
+    State: type
+    init_ask: InitAsk
+    init_tell: InitTell
+    ask: Ask
+    tell: Tell
+    final_population: FinalPopulation
+
+    def init(self, key: jax.Array, problem: Any, params: Any) -> Any:
+        """``init_ask``, score, ``init_tell``: the first state (``pop_size`` evaluations)."""
+        U, key = self.init_ask(key, problem, params)
+        return self.init_tell(key, evaluate_unit(problem, U), params)
+
+    def step(self, state: Any, problem: Any, params: Any) -> Any:
+        """One iteration: ``ask``, score ``pop_size`` candidates, ``tell``."""
+        U, state = self.ask(state, problem, params)
+        return self.tell(state, evaluate_unit(problem, U), params)
+
+    def validate(self, params: Any) -> None:
+        """:func:`validate_params` (ValueError naming the field and its range)."""
+        validate_params(params)
+
+
+def param(default: Any, *, symbol: str, lo: float = -math.inf, hi: float = math.inf, open_lo: bool = False,
+          open_hi: bool = False, integer: bool = False, is_static: bool = False, also: tuple = ()) -> Any:
+    """A ``Params`` field with its paper symbol and allowed range, checked by
+    :func:`validate_params` (``also``: extra allowed values, e.g. a sentinel). A static
+    field (``is_static``) is part of the compiled program's identity (shapes, loop counts);
+    the others may be traced, so ``vmap`` over them sweeps hyper-parameters."""
+    meta = dict(symbol=symbol, lo=lo, hi=hi, open_lo=open_lo, open_hi=open_hi, integer=integer, also=tuple(also))
+    if is_static:
+        meta["static"] = True
+    return field(default=default, metadata=meta)
+
+
+def _rule(meta: dict) -> str:
+    lo, hi = meta["lo"], meta["hi"]
+    kind = "an integer" if meta["integer"] else "a number"
+    if hi == math.inf:
+        rule = f"{kind} {'>' if meta['open_lo'] else '>='} {lo:g}"
+    else:
+        rule = f"{kind} in {'(' if meta['open_lo'] else '['}{lo:g}, {hi:g}{')' if meta['open_hi'] else ']'}"
+    return rule + "".join(f" or {a:g}" for a in meta["also"])
+
+
+def validate_params(params: Any) -> None:
+    """Check every field of a ``Params`` pytree against its :func:`param` range (each entry
+    of an array-valued field, as in a sweep). Raises ValueError naming the field, its
+    symbol, its allowed range and the value; before any compilation."""
+    for f in dataclasses.fields(params):
+        meta = f.metadata
+        if "symbol" not in meta:
+            continue
+        value = getattr(params, f.name)
+        what = f"{f.name} ({meta['symbol']})"
+        if meta["integer"]:
+            checks.integer(what, value, None if meta["lo"] == -math.inf else int(meta["lo"]),
+                           None if meta["hi"] == math.inf else int(meta["hi"]))
+            continue
+        try:
+            arr = checks.numbers(what, value)
+        except ValueError:
+            raise ValueError(f"{what} must be {_rule(meta)}, got {value!r}") from None
+        lo, hi = meta["lo"], meta["hi"]
+        ok = ((arr > lo) if meta["open_lo"] else (arr >= lo)) & ((arr < hi) if meta["open_hi"] else (arr <= hi))
+        ok |= np.isin(arr, meta["also"])
+        if not np.all(ok):
+            raise ValueError(f"{what} must be {_rule(meta)}, got {arr.tolist()!r}")
 
 
 def to_natural(problem, U):
@@ -82,106 +173,24 @@ def evaluate_runs(problem, U) -> Population:
 
 
 def uniform_init_ask(key, problem, params):
-    """``init_ask`` of the algorithms that start uniformly in the unit box (SPEC §7):
+    """``init_ask`` of the algorithms that start uniformly in the unit box (conventions §7):
     ``pop_size`` uniform candidates. → ``(U, key)``."""
     k_init, key = jax.random.split(key)
     dtype = jnp.zeros(()).dtype
     return jax.random.uniform(k_init, (params.pop_size, problem.n_var), dtype), key
 
 
-def evaluated_init(init_ask, init_tell, key, problem, params):
-    """``init`` from an ``init_ask``/``init_tell`` pair: ask, score, tell."""
-    U, key = init_ask(key, problem, params)
-    return init_tell(key, evaluate_unit(problem, U), params)
-
-
-def evaluated_step(ask, tell, state, problem, params):
-    """``step`` from an ``ask``/``tell`` pair: ask, score ``pop_size`` candidates, tell."""
-    U, state = ask(state, problem, params)
-    return tell(state, evaluate_unit(problem, U), params)
-
-
-def validate_common(pop_size: int, n_iter: int | None = None) -> None:
-    """Checks shared by every algorithm, raised before any compilation."""
-    if not isinstance(pop_size, (int, np.integer)) or isinstance(pop_size, bool) or pop_size < 4:
-        raise ValueError(f"pop_size must be an integer >= 4, got {pop_size!r}")
-    if n_iter is not None and (
-        not isinstance(n_iter, (int, np.integer)) or isinstance(n_iter, bool) or n_iter < 1
-    ):
-        raise ValueError(f"n_iter must be an integer >= 1, got {n_iter!r}")
-
-
-def _check_unit_interval(name: str, value, lo: float, hi: float, open_lo: bool, open_hi: bool):
-    arr = np.asarray(value, dtype=np.float64)
-    ok = np.isfinite(arr) & (arr > lo if open_lo else arr >= lo) & (arr < hi if open_hi else arr <= hi)
-    if not np.all(ok):
-        lb = "(" if open_lo else "["
-        rb = ")" if open_hi else "]"
-        raise ValueError(f"{name} must lie in {lb}{lo}, {hi}{rb}, got {arr.tolist()!r}")
-
-
-def check_range(name: str, value, lo: float, hi: float = np.inf, *, open_lo=False, open_hi=False):
-    """Raise ValueError unless every entry of ``value`` lies in the given interval."""
-    _check_unit_interval(name, value, lo, hi, open_lo, open_hi)
-
-
-class ZDT1:
-    """ZDT1 (Zitzler, Deb & Thiele 2000): 30 variables in [0, 1], two objectives, no limits.
-
-    Known front ``f2 = 1 − sqrt(f1)``, ``f1 ∈ [0, 1]`` (:meth:`pareto_front`).
-    """
-
-    n_obj = 2
-    n_con = 0
-
-    def __init__(self, n_var: int = 30):
-        self.n_var = int(n_var)
-        self.lower = np.zeros(self.n_var)
-        self.upper = np.ones(self.n_var)
-
-    def evaluate_jax(self, X):
-        f1 = X[:, 0]
-        g = 1.0 + 9.0 * jnp.mean(X[:, 1:], axis=1)
-        f2 = g * (1.0 - jnp.sqrt(jnp.clip(f1 / g, 0.0, None)))
-        return jnp.stack([f1, f2], 1), jnp.zeros((X.shape[0], 0), X.dtype)
-
-    def evaluate(self, X):
-        with jax.enable_x64(True):
-            F, G = self.evaluate_jax(jnp.asarray(X, jnp.float64))
-            return np.asarray(F), np.asarray(G)
-
-    @staticmethod
-    def pareto_front(n: int = 1000) -> np.ndarray:
-        f1 = np.linspace(0.0, 1.0, n)
-        return np.stack([f1, 1.0 - np.sqrt(f1)], 1)
-
-    def __repr__(self) -> str:
-        return f"ZDT1(n_var={self.n_var})"
-
-
-jax.tree_util.register_pytree_node(
-    ZDT1, lambda p: ((), p.n_var), lambda n, _: ZDT1(n)
-)
-
-
-def hypervolume_2d(F, feasible, ref):
-    """Exact 2-D hypervolume (minimisation) of the feasible points of F (n, 2) up to ``ref``.
-
-    Traceable: sort by f1, keep the running minimum of f2, sum the rectangles.
-    """
-    big = jnp.asarray(jnp.inf, F.dtype)
-    f1 = jnp.where(feasible & jnp.all(F < ref, axis=1), F[:, 0], big)
-    order = pareto.lexsort((f1,))
-    f1s = f1[order]
-    f2s = jnp.where(jnp.isfinite(f1s), F[order, 1], ref[1])
-    best = jax.lax.cummin(f2s)
-    prev = jnp.concatenate([jnp.full((1,), ref[1], F.dtype), best[:-1]])
-    width = jnp.where(jnp.isfinite(f1s), ref[0] - f1s, 0.0)
-    return jnp.sum(width * jnp.maximum(prev - best, 0.0))
+def merge_and_survive(parents: Population, children: Population, n: int) -> tuple[Population, jax.Array]:
+    """Merge parents and children (2n) and keep the best n by constrained non-dominated
+    rank, then crowding distance, then index (conventions §7). Returns the survivors and
+    their ranks."""
+    merged = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b], 0), parents, children)
+    idx, rank = pareto.survive(merged.F, merged.cv, n, return_rank=True)
+    return jax.tree_util.tree_map(lambda a: a[idx], merged), rank
 
 
 def run(
-    algorithm: ModuleType,
+    algorithm: Algorithm,
     key: jax.Array,
     problem,
     params,
@@ -201,7 +210,7 @@ def run(
 
 
 def run_batch(
-    algorithm: ModuleType,
+    algorithm: Algorithm,
     keys: jax.Array,
     problem,
     params,
@@ -230,7 +239,7 @@ def run_batch(
     evaluate = evaluate_runs if evaluate is None else evaluate
 
     def per_run(f):
-        return jax.vmap(lambda o, *a: f(*a, replace(params, **o) if o else params))
+        return jax.vmap(lambda o, *a: f(*a, dataclasses.replace(params, **o) if o else params))
 
     U0, key0 = per_run(lambda k, p: algorithm.init_ask(k, problem, p))(ov, keys)
     runs, n = U0.shape[:2]
@@ -250,8 +259,3 @@ def run_batch(
 
     state, trace = jax.lax.scan(body, state, jnp.arange(n_iter + 1))
     return state, jax.tree_util.tree_map(lambda a: jnp.moveaxis(a[1:], 0, 1), trace)
-
-
-def replace(obj, **changes):
-    """``dataclasses.replace`` for the frozen pytree dataclasses here."""
-    return dataclasses.replace(obj, **changes)

@@ -4,9 +4,9 @@ MOCS (:mod:`dockjax.algorithms.mocs`) with two changes:
 
 * **Bernoulli chaotic initialisation** (Eqs. 31–32) with parameter ρ (default 0.4), one
   sequence per dimension, computed in float64 and guarded against the finite-precision
-  collapse of the map (SPEC §7; :func:`dockjax.algorithms.operators.bernoulli_population`);
+  collapse of the map (conventions §7; :func:`dockjax.algorithms.operators.bernoulli_population`);
 * **adaptive step** (Eq. 33): ``α₀ = α_max (1 − ((iter − 1)/Maxiter)²)`` at iteration
-  ``iter = 1..Maxiter``, ``α_max`` default 0.1 (SPEC §7: the paper gives none; §4.3.2 asks
+  ``iter = 1..Maxiter``, ``α_max`` default 0.1 (conventions §7: the paper gives none; §4.3.2 asks
   for a step larger than MOCS's early on, decreasing to 0).
 """
 
@@ -15,38 +15,28 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .base import check_range, evaluated_init, evaluated_step, pytree_dataclass, static, validate_common
-from .mocs import State, cuckoo_ask, init_tell, tell
-from .mocs import final_population as final_population
+from .. import config
+from .base import Algorithm, param, pytree_dataclass
+from .mocs import State, cuckoo_ask, final_population, init_tell, tell
 from .operators import bernoulli_population
 
-__all__ = [
-    "Params", "State", "init", "step", "init_ask", "init_tell", "ask", "tell", "validate",
-    "final_population", "step_size",
-]
+__all__ = ["Params", "State", "ALGORITHM", "init_ask", "init_tell", "ask", "tell", "final_population", "step_size"]
 
 
 @pytree_dataclass
 class Params:
-    """IMOCS hyper-parameters (SPEC §7 defaults)."""
+    """IMOCS hyper-parameters (conventions §7 defaults)."""
 
-    pop_size: int = static(150)
-    max_iter: int = static(100)
+    pop_size: int = param(config.POP_SIZE, symbol="n", lo=4, integer=True, is_static=True)
+    """Number of nests n (evaluations per iteration)."""
+    max_iter: int = param(config.N_ITER, symbol="Maxiter", lo=1, integer=True, is_static=True)
     """``Maxiter`` of Eq. 33 (the run length)."""
-    rho: float = 0.4
+    rho: float = param(0.4, symbol="ρ", lo=0.0, hi=1.0, open_lo=True, open_hi=True)
     """Bernoulli map parameter ρ ∈ (0, 1) (Eq. 31)."""
-    alpha_max: float = 0.1
-    """Maximum step ``α_max`` (Eq. 33)."""
-    p_a: float = 0.25
-    """Discovery probability per component."""
-
-
-def validate(problem, params: Params) -> None:
-    """Clear ValueErrors for bad hyper-parameters, before any compilation."""
-    validate_common(params.pop_size, params.max_iter)
-    check_range("rho", params.rho, 0.0, 1.0, open_lo=True, open_hi=True)
-    check_range("alpha_max", params.alpha_max, 0.0, open_lo=True)
-    check_range("p_a", params.p_a, 0.0, 1.0)
+    alpha_max: float = param(0.1, symbol="α_max", lo=0.0, open_lo=True)
+    """Maximum step ``α_max`` > 0 (Eq. 33)."""
+    p_a: float = param(0.25, symbol="p_a", lo=0.0, hi=1.0)
+    """Discovery probability per component, in [0, 1]."""
 
 
 def step_size(iteration, params: Params):
@@ -68,11 +58,5 @@ def ask(state: State, problem, params: Params):
     return cuckoo_ask(state, alpha, params.p_a)
 
 
-def init(key, problem, params: Params) -> State:
-    """Chaotic nests (Eqs. 31–32), evaluated."""
-    return evaluated_init(init_ask, init_tell, key, problem, params)
-
-
-def step(state: State, problem, params: Params) -> State:
-    """One IMOCS iteration: :func:`ask`, evaluate the n children, :func:`tell`."""
-    return evaluated_step(ask, tell, state, problem, params)
+ALGORITHM = Algorithm(name="imocs", Params=Params, State=State, init_ask=init_ask, init_tell=init_tell, ask=ask,
+                      tell=tell, final_population=final_population)

@@ -1,9 +1,9 @@
-"""MOCS: multi-objective cuckoo search (Yang & Deb 2013; paper §4.2, Eqs. 27–30; SPEC §7).
+"""MOCS: multi-objective cuckoo search (Yang & Deb 2013; paper §4.2, Eqs. 27–30; conventions §7).
 
 X.-S. Yang and S. Deb, "Multiobjective cuckoo search for design optimization",
 Computers & Operations Research 40(6), 2013, https://doi.org/10.1016/j.cor.2011.09.026.
 
-One iteration (exactly ``pop_size`` evaluations, SPEC §7's equal-budget rule):
+One iteration (exactly ``pop_size`` evaluations, conventions §7's equal-budget rule):
 
 1. Lévy flight (Eqs. 27–29): ``x' = x + α₀ · step ⊙ (x_j − x)``, Mantegna steps (β = 1.5),
    ``x_j`` drawn at random from the current rank-1 set for each nest, ``α₀ = 0.01``;
@@ -12,38 +12,35 @@ One iteration (exactly ``pop_size`` evaluations, SPEC §7's equal-budget rule):
 3. clip to the unit box, evaluate the n children once, merge them with their parents and
    keep the best n by constrained non-dominated rank, then crowding distance.
 
-Departures from the paper, as fixed by SPEC §7: uniform initialisation in the box (Eq. 30's
+Departures from the paper, as fixed by conventions §7: uniform initialisation in the box (Eq. 30's
 ``N(0, 1)`` makes no sense in a bounded box); the Lévy move is kept and followed by
 discovery (Yang's demo code overwrites it); children and parents are merged for survival.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import jax
 import jax.numpy as jnp
 
-from .. import pareto
-from .base import (
-    Population, check_range, evaluated_init, evaluated_step, pytree_dataclass, replace, static,
-    uniform_init_ask, validate_common,
-)
-from .operators import discovery, levy_step, merge_and_survive, random_rank1_partner
+from .. import config, pareto
+from .base import Algorithm, Population, merge_and_survive, param, pytree_dataclass, uniform_init_ask
+from .operators import discovery, levy_step, random_rank1_partner
 
-__all__ = [
-    "Params", "State", "init", "step", "init_ask", "init_tell", "ask", "tell", "validate",
-    "final_population", "cuckoo_ask",
-]
+__all__ = ["Params", "State", "ALGORITHM", "init_ask", "init_tell", "ask", "tell", "final_population", "cuckoo_ask"]
 
 
 @pytree_dataclass
 class Params:
-    """MOCS hyper-parameters (SPEC §7 defaults)."""
+    """MOCS hyper-parameters (conventions §7 defaults)."""
 
-    pop_size: int = static(150)
-    alpha0: float = 0.01
-    """Step-size factor α₀ of Eq. 29."""
-    p_a: float = 0.25
-    """Discovery probability per component."""
+    pop_size: int = param(config.POP_SIZE, symbol="n", lo=4, integer=True, is_static=True)
+    """Number of nests n (evaluations per iteration)."""
+    alpha0: float = param(0.01, symbol="α₀", lo=0.0, open_lo=True)
+    """Step-size factor α₀ of Eq. 29, > 0."""
+    p_a: float = param(0.25, symbol="p_a", lo=0.0, hi=1.0)
+    """Discovery probability per component, in [0, 1]."""
 
 
 @pytree_dataclass
@@ -55,15 +52,8 @@ class State:
     """Completed iterations (int32)."""
 
 
-def validate(problem, params: Params) -> None:
-    """Clear ValueErrors for bad hyper-parameters, before any compilation."""
-    validate_common(params.pop_size)
-    check_range("alpha0", params.alpha0, 0.0, open_lo=True)
-    check_range("p_a", params.p_a, 0.0, 1.0)
-
-
 def init_ask(key, problem, params: Params):
-    """Uniform random nests in the unit box (SPEC §7). → ``(U, key)``."""
+    """Uniform random nests in the unit box (conventions §7). → ``(U, key)``."""
     return uniform_init_ask(key, problem, params)
 
 
@@ -96,18 +86,10 @@ def tell(state: State, children: Population, params: Params) -> State:
     return State(key=state.key, pop=pop, rank=rank, iteration=state.iteration + 1)
 
 
-def init(key, problem, params: Params) -> State:
-    """Uniform random nests in the unit box (SPEC §7), evaluated."""
-    return evaluated_init(init_ask, init_tell, key, problem, params)
-
-
-def step(state: State, problem, params: Params) -> State:
-    """One MOCS iteration: :func:`ask`, evaluate the n children, :func:`tell`."""
-    return evaluated_step(ask, tell, state, problem, params)
-
-
 def final_population(state: State) -> Population:
     """The population after the last iteration."""
     return state.pop
 
 
+ALGORITHM = Algorithm(name="mocs", Params=Params, State=State, init_ask=init_ask, init_tell=init_tell, ask=ask,
+                      tell=tell, final_population=final_population)

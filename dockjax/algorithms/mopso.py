@@ -1,10 +1,10 @@
-"""MOPSO (Coello Coello, Toscano Pulido & Salazar Lechuga 2004; SPEC §7) as a JAX program.
+"""MOPSO (Coello Coello, Toscano Pulido & Salazar Lechuga 2004; conventions §7) as a JAX program.
 
 C. A. Coello Coello, G. Toscano Pulido and M. Salazar Lechuga, "Handling multiple
 objectives with particle swarm optimization", IEEE Transactions on Evolutionary
 Computation 8(3):256–279, 2004, https://doi.org/10.1109/TEVC.2004.826067.
 
-One iteration (exactly ``pop_size`` evaluations, SPEC §7's equal-budget rule):
+One iteration (exactly ``pop_size`` evaluations, conventions §7's equal-budget rule):
 
 1. leaders: the adaptive hypergrid (``n_div`` = 30 divisions per objective) is laid over the
    repository's bounding box; each particle takes a leader by roulette over the occupied
@@ -45,46 +45,34 @@ count), which gives exactly the two-stage probabilities ``(10/c) / Σ (10/c') ·
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from .. import pareto
-from .base import (
-    Population, check_range, evaluated_init, evaluated_step, pytree_dataclass, replace, static,
-    uniform_init_ask, validate_common,
-)
+from .. import config, pareto
+from .base import Algorithm, Population, param, pytree_dataclass, uniform_init_ask
 
 __all__ = [
-    "Params",
-    "State",
-    "init",
-    "step",
-    "init_ask",
-    "init_tell",
-    "ask",
-    "tell",
-    "validate",
-    "final_population",
-    "grid_coordinates",
+    "Params", "State", "ALGORITHM", "init_ask", "init_tell", "ask", "tell", "final_population", "grid_coordinates",
     "update_repository",
 ]
 
 
 @pytree_dataclass
 class Params:
-    """MOPSO hyper-parameters (SPEC §7 defaults). ``w`` and ``p_m`` may be traced."""
+    """MOPSO hyper-parameters (conventions §7 defaults). ``w`` and ``mutation_rate`` may be traced."""
 
-    pop_size: int = static(150)
+    pop_size: int = param(config.POP_SIZE, symbol="N", lo=4, integer=True, is_static=True)
     """Number of particles, and capacity of the repository."""
-    max_iter: int = static(100)
+    max_iter: int = param(config.N_ITER, symbol="T_max", lo=1, integer=True, is_static=True)
     """T_max of the mutation schedule (set it to the number of iterations run)."""
-    w: float = 0.4
+    w: float = param(0.4, symbol="w", lo=0.0, hi=1.0)
     """Inertia weight, in [0, 1]."""
-    n_div: int = static(30)
+    n_div: int = param(30, symbol="divisions", lo=1, integer=True, is_static=True)
     """Hypergrid divisions per objective."""
-    p_m: float = 0.5
-    """Mutation rate p_M in [0, 1]: mutation acts during the first ``p_m · max_iter``
+    mutation_rate: float = param(0.5, symbol="p_M", lo=0.0, hi=1.0)
+    """Mutation rate p_M in [0, 1]: mutation acts during the first ``p_M · max_iter``
     iterations (0 disables it)."""
 
 
@@ -104,19 +92,6 @@ class State:
     """(pop_size,) bool, which repository slots hold members."""
     iteration: jax.Array
     """Completed iterations (int32)."""
-
-
-def validate(problem, params: Params) -> None:
-    """Clear ValueErrors for bad hyper-parameters, before any compilation."""
-    validate_common(params.pop_size, params.max_iter)
-    if (
-        not isinstance(params.n_div, (int, np.integer))
-        or isinstance(params.n_div, bool)
-        or params.n_div < 1
-    ):
-        raise ValueError(f"n_div must be an integer >= 1, got {params.n_div!r}")
-    check_range("w", params.w, 0.0, 1.0)
-    check_range("p_m", params.p_m, 0.0, 1.0)
 
 
 def grid_coordinates(F: jax.Array, valid: jax.Array, n_div: int) -> jax.Array:
@@ -267,7 +242,7 @@ def ask(state: State, problem, params: Params):
     out = (X < 0.0) | (X > 1.0)
     X = jnp.clip(X, 0.0, 1.0)
     v = jnp.where(out, -v, v)
-    X = _mutate(k_mut, X, state.iteration.astype(X.dtype), params.max_iter, params.p_m)
+    X = _mutate(k_mut, X, state.iteration.astype(X.dtype), params.max_iter, params.mutation_rate)
     return X, replace(state, key=key, velocity=v)
 
 
@@ -286,20 +261,13 @@ def tell(state: State, pop: Population, params: Params) -> State:
     )
 
 
-def init(key, problem, params: Params) -> State:
-    """Uniform random particles in the unit box, at rest, evaluated (``pop_size``
-    evaluations)."""
-    return evaluated_init(init_ask, init_tell, key, problem, params)
-
-
-def step(state: State, problem, params: Params) -> State:
-    """One MOPSO iteration: :func:`ask`, evaluation, :func:`tell`."""
-    return evaluated_step(ask, tell, state, problem, params)
-
-
 def final_population(state: State) -> Population:
     """The repository, the algorithm's output: (pop_size, ·) slots whose members are
     mutually non-dominated (constrained dominance). Empty slots (``~state.archive_valid``)
     carry F = G = cv = +inf, so they count as infeasible and are dominated by every real
     candidate: feasibility masks and non-dominated ranking drop them."""
     return state.repository
+
+
+ALGORITHM = Algorithm(name="mopso", Params=Params, State=State, init_ask=init_ask, init_tell=init_tell, ask=ask,
+                      tell=tell, final_population=final_population)

@@ -1,10 +1,10 @@
-"""NSGA-II (Deb, Pratap, Agarwal & Meyarivan 2002; SPEC §7) as a pure JAX program.
+"""NSGA-II (Deb, Pratap, Agarwal & Meyarivan 2002; conventions §7) as a pure JAX program.
 
 K. Deb, A. Pratap, S. Agarwal and T. Meyarivan, "A fast and elitist multiobjective genetic
 algorithm: NSGA-II", IEEE Transactions on Evolutionary Computation 6(2):182–197, 2002,
 https://doi.org/10.1109/4235.996017.
 
-One iteration (exactly ``pop_size`` evaluations, SPEC §7's equal-budget rule):
+One iteration (exactly ``pop_size`` evaluations, conventions §7's equal-budget rule):
 
 1. binary tournament on Deb's constraint-domination, then rank, then crowding distance
    (:func:`~dockjax.algorithms.variation.binary_tournament`), ``2⌈n/2⌉`` winners;
@@ -20,7 +20,7 @@ One iteration (exactly ``pop_size`` evaluations, SPEC §7's equal-budget rule):
 
 Differences from pymoo 0.6.2's ``NSGA2`` (the test-suite's reference), all deliberate:
 pymoo mutates an individual only with probability 0.9 (then each variable with 1/n_var;
-here every individual is eligible, as SPEC §7 states); pymoo's tournament compares feasible
+here every individual is eligible, as conventions §7 states); pymoo's tournament compares feasible
 pairs by Pareto dominance rather than rank (``comp_by_dom_and_crowding``); pymoo removes
 duplicate children and re-mates; and survival ties are broken by index here
 (:mod:`dockjax.pareto`).
@@ -28,35 +28,31 @@ duplicate children and re-mates; and survival ties are broken by index here
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from .. import pareto
-from .base import (
-    Population, check_range, evaluated_init, evaluated_step, pytree_dataclass, replace, static,
-    uniform_init_ask, validate_common,
-)
+from .. import config, pareto
+from .base import Algorithm, Population, merge_and_survive, param, pytree_dataclass, uniform_init_ask
 from .variation import binary_tournament, polynomial_mutation, sbx
 
-__all__ = [
-    "Params", "State", "init", "step", "init_ask", "init_tell", "ask", "tell", "validate",
-    "final_population",
-]
+__all__ = ["Params", "State", "ALGORITHM", "init_ask", "init_tell", "ask", "tell", "final_population"]
 
 
 @pytree_dataclass
 class Params:
-    """NSGA-II hyper-parameters (SPEC §7 defaults). Every field but ``pop_size`` may be traced."""
+    """NSGA-II hyper-parameters (conventions §7 defaults). Every field but ``pop_size`` may be traced."""
 
-    pop_size: int = static(150)
-    eta_c: float = 15.0
+    pop_size: int = param(config.POP_SIZE, symbol="N", lo=4, integer=True, is_static=True)
+    """Population size N (evaluations per generation)."""
+    eta_c: float = param(15.0, symbol="η_c", lo=0.0, open_lo=True)
     """SBX distribution index η_c > 0."""
-    p_c: float = 0.9
+    p_crossover: float = param(0.9, symbol="p_c", lo=0.0, hi=1.0)
     """Probability that a pair of parents is crossed, in [0, 1]."""
-    eta_m: float = 20.0
+    eta_m: float = param(20.0, symbol="η_m", lo=0.0, open_lo=True)
     """Polynomial-mutation distribution index η_m > 0."""
-    p_m: float = -1.0
+    p_mutation: float = param(-1.0, symbol="p_m", lo=0.0, hi=1.0, also=(-1.0,))
     """Per-variable mutation probability in [0, 1]; the sentinel −1 (default) means
     ``1/n_var`` (a pytree leaf cannot be None and still be vmapped)."""
 
@@ -72,17 +68,6 @@ class State:
     """(pop_size,) crowding distance of ``pop`` within its fronts."""
     iteration: jax.Array
     """Completed iterations (int32)."""
-
-
-def validate(problem, params: Params) -> None:
-    """Clear ValueErrors for bad hyper-parameters, before any compilation."""
-    validate_common(params.pop_size)
-    check_range("eta_c", params.eta_c, 0.0, open_lo=True)
-    check_range("p_c", params.p_c, 0.0, 1.0)
-    check_range("eta_m", params.eta_m, 0.0, open_lo=True)
-    p_m = np.asarray(params.p_m, dtype=np.float64)
-    if not np.all((p_m == -1.0) | (np.isfinite(p_m) & (p_m >= 0.0) & (p_m <= 1.0))):
-        raise ValueError(f"p_m must lie in [0, 1] or be -1 (meaning 1/n_var), got {p_m.tolist()!r}")
 
 
 def _with_ranks(key, pop: Population) -> State:
@@ -108,9 +93,9 @@ def ask(state: State, problem, params: Params):
     n_pairs = (n + 1) // 2
     winners = binary_tournament(k_sel, state.rank, state.crowding, state.pop.cv, 2 * n_pairs)
     pairs = winners.reshape(n_pairs, 2)
-    child_a, child_b = sbx(k_cross, U[pairs[:, 0]], U[pairs[:, 1]], params.eta_c, params.p_c)
+    child_a, child_b = sbx(k_cross, U[pairs[:, 0]], U[pairs[:, 1]], params.eta_c, params.p_crossover)
     children = jnp.concatenate([child_a, child_b], axis=0)[:n]
-    p_m = jnp.where(params.p_m < 0, 1.0 / U.shape[1], params.p_m)
+    p_m = jnp.where(params.p_mutation < 0, 1.0 / U.shape[1], params.p_mutation)
     children = jnp.clip(polynomial_mutation(k_mut, children, params.eta_m, p_m), 0.0, 1.0)
     return children, replace(state, key=key)
 
@@ -118,26 +103,15 @@ def ask(state: State, problem, params: Params):
 def tell(state: State, offspring: Population, params: Params) -> State:
     """Merge the scored children with the parents; the best n survive (constrained rank,
     then crowding), with their recomputed rank and crowding distance."""
-    merged = jax.tree_util.tree_map(
-        lambda a, b: jnp.concatenate([a, b], axis=0), state.pop, offspring
-    )
-    keep = pareto.survive(merged.F, merged.cv, params.pop_size)
-    pop = jax.tree_util.tree_map(lambda a: a[keep], merged)
+    pop, _ = merge_and_survive(state.pop, offspring, params.pop_size)
     rank, crowding = pareto.rank_and_crowding(pop.F, pop.cv)
     return State(key=state.key, pop=pop, rank=rank, crowding=crowding, iteration=state.iteration + 1)
-
-
-def init(key, problem, params: Params) -> State:
-    """Uniform random population in the unit box, evaluated (``pop_size`` evaluations)."""
-    return evaluated_init(init_ask, init_tell, key, problem, params)
-
-
-def step(state: State, problem, params: Params) -> State:
-    """One generation: :func:`ask` (tournament, SBX, mutation), evaluation of the n
-    children, :func:`tell` (survival)."""
-    return evaluated_step(ask, tell, state, problem, params)
 
 
 def final_population(state: State) -> Population:
     """The population after the last iteration (all ``pop_size`` members are real)."""
     return state.pop
+
+
+ALGORITHM = Algorithm(name="nsga2", Params=Params, State=State, init_ask=init_ask, init_tell=init_tell, ask=ask,
+                      tell=tell, final_population=final_population)

@@ -1,9 +1,9 @@
-"""Cuckoo-search operators shared by MOCS and IMOCS (paper §4.2–4.3, ALGORITHMS.md).
+"""Cuckoo-search operators shared by MOCS and IMOCS (paper §4.2–4.3, conventions §10).
 
 * Lévy steps by Mantegna's method (Mantegna 1994; Yang & Deb 2013), β = 1.5.
-* Discovery of alien eggs with probability ``p_a`` per component (SPEC §7).
+* Discovery of alien eggs with probability ``p_a`` per component (conventions §7).
 * The Bernoulli chaotic map (paper Eq. 31) and the chaotic initial population (Eq. 32),
-  guarded against the finite-precision collapse of the map (SPEC §7).
+  guarded against the finite-precision collapse of the map (conventions §7).
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ import math
 import jax
 import jax.numpy as jnp
 
-from .. import pareto
 from ..fusion import materialize
 
 __all__ = [
@@ -23,7 +22,6 @@ __all__ = [
     "discovery",
     "bernoulli_map",
     "bernoulli_population",
-    "merge_and_survive",
 ]
 
 LEVY_BETA = 1.5
@@ -32,7 +30,7 @@ LEVY_BETA = 1.5
 def mantegna_sigma(beta: float = LEVY_BETA) -> float:
     """``σ_u = [Γ(1+β) sin(πβ/2) / (Γ((1+β)/2) β 2^((β−1)/2))]^(1/β)`` (≈ 0.6966 at β = 1.5).
 
-    Note the exponent ``1/β`` (a version in circulation uses ``1/(2β)``; ALGORITHMS.md).
+    Note the exponent ``1/β`` (a version in circulation uses ``1/(2β)``; conventions §10).
     """
     num = math.gamma(1 + beta) * math.sin(math.pi * beta / 2)
     den = math.gamma((1 + beta) / 2) * beta * 2 ** ((beta - 1) / 2)
@@ -48,7 +46,7 @@ def levy_step(key, shape, dtype, beta: float = LEVY_BETA):
 
 
 def random_rank1_partner(key, rank):
-    """For each nest, the index of a member drawn uniformly from the rank-1 set (SPEC §7:
+    """For each nest, the index of a member drawn uniformly from the rank-1 set (conventions §7:
     ``x_j`` at random from the current non-dominated set). rank: (n,) → (n,) int32."""
     n = rank.shape[0]
     count = jnp.cumsum(rank == 0)  # count[i]: rank-1 members among 0..i
@@ -57,9 +55,9 @@ def random_rank1_partner(key, rank):
 
 
 def discovery(key, U, p_a):
-    """Alien-egg discovery (Yang & Deb 2013; SPEC §7): each component changes with
+    """Alien-egg discovery (Yang & Deb 2013; conventions §7): each component changes with
     probability ``p_a`` by ``r (x_a − x_b)``, a, b random permutations, ``r ~ U(0, 1)`` per
-    component (the ``⊙`` of ALGORITHMS.md). U: (n, d) → (n, d)."""
+    component (the ``⊙`` of conventions §10). U: (n, d) → (n, d)."""
     U = materialize(U)  # read at permuted rows below
     n, d = U.shape
     k1, k2, k3, k4 = jax.random.split(key, 4)
@@ -82,7 +80,7 @@ MEMORY = 8
 
 
 def bernoulli_population(key, n: int, d: int, rho, dtype=jnp.float64):
-    """Chaotic initial nests in the unit box (paper Eqs. 31–32; SPEC §7). → (n, d).
+    """Chaotic initial nests in the unit box (paper Eqs. 31–32; conventions §7). → (n, d).
 
     One independent sequence per dimension: a random start, then ``n − 1`` iterations of the
     map. In binary floating point the map collapses (at ρ = 0.5 it is the doubling map and
@@ -112,12 +110,3 @@ def bernoulli_population(key, n: int, d: int, rho, dtype=jnp.float64):
     memory = jnp.full((MEMORY, d), -1.0, dtype).at[-1].set(z0)
     _, rest = jax.lax.scan(body, (z0, memory), jax.random.split(kseq, n - 1))
     return jnp.concatenate([z0[None, :], rest], axis=0)
-
-
-def merge_and_survive(parents, children, n: int):
-    """Merge parents and children (2n) and keep the best n by constrained non-dominated
-    rank, then crowding distance, then index (SPEC §7). Returns the survivors' Population
-    and their ranks."""
-    merged = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b], 0), parents, children)
-    idx, rank = pareto.survive(merged.F, merged.cv, n, return_rank=True)
-    return jax.tree_util.tree_map(lambda a: a[idx], merged), rank

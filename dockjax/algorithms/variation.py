@@ -1,4 +1,4 @@
-"""Genetic variation operators of NSGA-II in the unit box (ALGORITHMS.md; pymoo's defaults).
+"""Genetic variation operators of NSGA-II in the unit box (conventions §10; pymoo's defaults).
 
 * Bounded simulated binary crossover, SBX (K. Deb and R. B. Agrawal, "Simulated binary
   crossover for continuous search space", Complex Systems 9(2):115–148, 1995), in the

@@ -4,7 +4,7 @@ the choice of three trajectories, and the files of ``experiments/compare.py``.
 Data flow: :func:`run_study` runs every algorithm for every seed (all seeds of an
 algorithm batched; ``driver="host"``, so the algorithms share the kernel's compilation)
 → the reference front is the non-dominated union of every final feasible set
-(SPEC §8) → indicators per run on objectives normalised by that front → per-algorithm
+(conventions §8) → indicators per run on objectives normalised by that front → per-algorithm
 medians, interquartile ranges, best runs and a rank-sum test against IMOCS → Table 3 and
 Table 4 analogues from the IMOCS run of median hypervolume.
 """
@@ -12,25 +12,21 @@ Table 4 analogues from the IMOCS run of median hypervolume.
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import mannwhitneyu
 
 from . import config, metrics, plots, select
-from .algorithms import Result, optimize, refine_result
 from .io import atomic_savez, atomic_write_text
-from .problem import DockingProblem, bucket_rows
+from .optimize import Result, optimize, refine_result
+from .problem import DockingProblem, bucket_rows, make_problem
 from .refine import FrontResult, best_known_front
 
-__all__ = ["PRESETS", "BEST_KNOWN", "make_problem", "study_right_arm", "refine_rows", "hv_reference", "best_known_cached", "run_study", "Study", "write_study"]
-
-PRESETS = {
-    "paper": dict(interval_bounds=(3.5, 10.0)),
-    "wide": dict(interval_bounds=(0.5, 10.0)),
-}
-"""``paper``: h ∈ [3.5, 10] s (SPEC §3). ``wide``: h ∈ [0.5, 10] s, where the velocity limits
-rather than the interval bounds decide the fast end of the front."""
+__all__ = ["study_right_arm", "refine_rows", "hv_reference", "best_known_cached", "run_study", "Study",
+           "summary_table", "write_study"]
 
 INDICATORS = ("ONVG", "GD", "SP", "IGD", "HV", "HV_fraction")
 TYPES = ("compromise", "time", "smooth")
@@ -39,7 +35,7 @@ TYPES = ("compromise", "time", "smooth")
 STUDY_RIGHT_ARM = "adaptive"
 """Right-arm treatment of the comparison's problems (see :class:`DockingProblem`) when it
 runs several presets. ``"adaptive"`` scores exactly as ``"bound"`` wherever the bound is
-within SPEC §6's tolerance — every candidate of the ``paper`` preset, where ``"auto"``
+within conventions §6's tolerance — every candidate of the ``paper`` preset, where ``"auto"``
 picks ``"bound"`` — and by the ``"taylor"`` treatment elsewhere; with one setting for every preset, the
 presets share every compiled program (same shapes, same static settings), which saves
 compare.py a whole set of compilations (~1 minute here). A single preset keeps its
@@ -59,13 +55,6 @@ def refine_rows(*sizes: int) -> int:
     the memetic rows), given their row counts: the kernel's bucket of the largest, at most
     :data:`REFINE_ROWS`; so one compiled program serves them all."""
     return min(REFINE_ROWS, bucket_rows(max(sizes)))
-
-
-def make_problem(preset: str, right_arm: str = "auto") -> DockingProblem:
-    """The problem of a preset (:data:`PRESETS`); ``right_arm`` as in :class:`DockingProblem`."""
-    if preset not in PRESETS:
-        raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {preset!r}")
-    return DockingProblem(**PRESETS[preset], right_arm=right_arm)
 
 
 def hv_reference(problem: DockingProblem) -> np.ndarray:
@@ -90,7 +79,7 @@ class Study:
     seconds: float
     reference_kind: str = "union"
     """``"best-known"`` (the independent front of :func:`dockjax.refine.best_known_front`) or
-    ``"union"`` (non-dominated union of every final feasible set, SPEC §8)."""
+    ``"union"`` (non-dominated union of every final feasible set, conventions §8)."""
     best_known: FrontResult | None = None
 
     @property
@@ -101,15 +90,11 @@ class Study:
         return (f"non-dominated union of every final feasible set ({len(self.reference_front)} points)")
 
 
-BEST_KNOWN = dict(n_points=150, n_perturbed=0, steps=600)
-"""Settings of the best-known front used as the reference of ``experiments/compare.py``."""
-
-
 def best_known_cached(problem: DockingProblem, path: Path | None = None, log=print, **settings) -> FrontResult:
     """:func:`dockjax.refine.best_known_front` of ``problem`` (settings default to
-    :data:`BEST_KNOWN`), reused from ``path`` (an ``.npz``) when that file was written for
+    :data:`dockjax.config.BEST_KNOWN`), reused from ``path`` (an ``.npz``) when that file was written for
     the same problem and settings, else computed and written there atomically."""
-    settings = {**BEST_KNOWN, **settings}
+    settings = {**config.BEST_KNOWN, **settings}
     key = json.dumps({"problem": repr(problem), "right_arm": problem.right_arm,
                       **{k: v for k, v in settings.items() if k != "rows"}}, sort_keys=True)
     if path is not None and Path(path).exists():
@@ -125,10 +110,10 @@ def best_known_cached(problem: DockingProblem, path: Path | None = None, log=pri
 
 
 def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), seeds=range(31),
-              pop_size: int = 150, n_iter: int = 100, refine_steps: int = 0,
+              pop_size: int = config.POP_SIZE, n_iter: int = config.N_ITER, refine_steps: int = 0,
               best_known: FrontResult | None = None, right_arm: str = "auto", refine_rows: int | None = None,
               log=print) -> Study:
-    """Run every algorithm for every seed and score them (SPEC §8).
+    """Run every algorithm for every seed and score them (conventions §8).
 
     ``refine_steps > 0`` adds ``"imocs+refine"``: the IMOCS runs finished by gradient
     refinement (:func:`dockjax.algorithms.refine_result`). ``best_known`` (from
@@ -137,8 +122,6 @@ def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), se
     problem's right-arm treatment (:func:`study_right_arm`); ``refine_rows``: rows per
     compiled call of the refinement (:func:`refine_rows`; default its own bucket).
     """
-    import time
-
     t0 = time.perf_counter()
     problem = make_problem(preset, right_arm)
     ref_point = hv_reference(problem)
@@ -186,8 +169,6 @@ def _below(F: np.ndarray, R: np.ndarray, rtol: float = 1e-3) -> np.ndarray:
 
 def summary_table(study: Study) -> list[dict]:
     """Per algorithm and indicator: median, IQR, best run, rank-sum p-value against IMOCS."""
-    from scipy.stats import mannwhitneyu  # scipy comes with jax
-
     rows = []
     base = study.per_run.get("imocs")
     for name, vals in study.per_run.items():
@@ -251,7 +232,8 @@ def _fmt(v) -> str:
 
 def _write_table(rows: list[dict], stem: Path, note: str = "") -> None:
     cols = list(rows[0])
-    atomic_write_text(stem.with_suffix(".csv"), "\n".join([",".join(cols)] + [",".join(_fmt(r[c]) for c in cols) for r in rows]) + "\n")
+    csv = [",".join(cols)] + [",".join(_fmt(r[c]) for c in cols) for r in rows]
+    atomic_write_text(stem.with_suffix(".csv"), "\n".join(csv) + "\n")
     md = ([note, ""] if note else []) + ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     md += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in rows]
     atomic_write_text(stem.with_suffix(".md"), "\n".join(md) + "\n")
@@ -291,7 +273,8 @@ def write_study(study: Study, out: Path) -> list[Path]:
     i = median_run(study, "imocs") if "imocs" in study.results else 0
     name = "imocs" if "imocs" in study.results else next(iter(study.results))
     front = study.results[name].fronts()[i]
-    t3 = [{"serial": k + 1, "T_s": f[0], "jerk": f[1]} for k, f in enumerate(table3(front))] if len(front) else [{"serial": 0, "T_s": np.nan, "jerk": np.nan}]
+    t3 = ([{"serial": k + 1, "T_s": f[0], "jerk": f[1]} for k, f in enumerate(table3(front))] if len(front)
+          else [{"serial": 0, "T_s": np.nan, "jerk": np.nan}])
     _write_table(t3, folder / "table3")
     written += [folder / "table3.csv", folder / "table3.md"]
     chosen = chosen_trajectories(study, name) if len(front) else {}
@@ -307,8 +290,8 @@ def write_study(study: Study, out: Path) -> list[Path]:
     if t4:
         _write_table(t4, folder / "table4")
         written += [folder / "table4.csv", folder / "table4.md"]
-        atomic_write_text(folder / "chosen.json", json.dumps(
-            {k: {"x": c["x"].tolist(), "T": float(c["T"]), "jerk": float(c["jerk"])} for k, c in chosen.items()}, indent=2))
+        doc = {k: {"x": c["x"].tolist(), "T": float(c["T"]), "jerk": float(c["jerk"])} for k, c in chosen.items()}
+        atomic_write_text(folder / "chosen.json", json.dumps(doc, indent=2))
         written.append(folder / "chosen.json")
     # figures
     fronts = {n: r.fronts()[median_run(study, n)] for n, r in study.results.items()}
@@ -331,8 +314,8 @@ def write_study(study: Study, out: Path) -> list[Path]:
                                          title="joints of the compromise trajectory"))
     # a memetic run's history is its optimiser's (before refinement): not drawn twice
     hist = {n: r.history for n, r in study.results.items() if r.history is not None and "+refine" not in n}
-    written.append(plots.plot_convergence(hist, folder / "convergence.png",
-                                          title=f"hypervolume (ref {np.round(hv_reference(study.problem), 3).tolist()})"))
+    ref = np.round(hv_reference(study.problem), 3).tolist()
+    written.append(plots.plot_convergence(hist, folder / "convergence.png", title=f"hypervolume (ref {ref})"))
     return written
 
 

@@ -1,0 +1,47 @@
+"""Decision vector → trajectory: knot intervals, knots and per-span power series of the
+pose (conventions §2–3), and the reference angles of each span.
+
+Everything here is traceable (jit, vmap) and works on one candidate; the kernel vmaps it.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import jax.numpy as jnp
+
+from . import bspline, config
+from .config import DEG as _DEG
+from .fusion import materialize
+
+if TYPE_CHECKING:
+    from .problem import DockingProblem
+
+__all__ = ["decode", "span_angles"]
+
+
+def decode(problem: "DockingProblem", x):
+    """Intervals, knots and span coefficients of one candidate.
+
+    x: (n_var,) → ``h`` (6,), ``u`` (17,), ``c`` (6 spans, 6 powers, 6 pose coordinates).
+    """
+    h = x[: config.N_INTERVALS]
+    if problem.reduced:
+        interior = bspline.line_control_points(problem.start, problem.goal).astype(x.dtype)
+    else:
+        interior = x[config.N_INTERVALS :].reshape(config.N_FREE, config.N_POSE)
+    u = bspline.knots(h)
+    ctrl = bspline.control_points(problem.start, problem.goal, interior)
+    # Materialise: stops XLA from re-fusing (and so recomputing) the conversion into
+    # every broadcasting consumer downstream.
+    return materialize((h, u, bspline.span_coefficients(ctrl, u)))
+
+
+def span_angles(c, h):
+    """Pitch and yaw (°) at the middle of each span with their sines and cosines.
+
+    c: (6, 6, 6), h: (6,) → (mid (6, 2), sin (6, 2), cos (6, 2)): the reference angles of
+    the expansions used for the right arm (one trig call per span and angle).
+    """
+    mid = bspline.poly_eval(jnp.swapaxes(c[..., 3:5], 1, 2), 0.5 * h[:, None])  # (6, 2)
+    return mid, jnp.sin(_DEG * mid), jnp.cos(_DEG * mid)

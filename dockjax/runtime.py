@@ -1,0 +1,62 @@
+"""The process-wide settings a command line makes before its first JAX computation: the
+persistent compilation cache and the number of CPU devices. The library never calls these
+itself; the CLIs and the benchmarks do.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import jax
+
+from . import checks
+
+__all__ = ["enable_compilation_cache", "usable_cores", "use_cpu_devices", "claim_devices"]
+
+
+def enable_compilation_cache() -> None:
+    """Use JAX's persistent compilation cache in ``$DOCKJAX_CACHE`` or
+    ``~/.cache/dockjax/jax``, so that a second run of the same shapes skips compilation
+    (a read-only home runs without it)."""
+    path = Path(os.environ.get("DOCKJAX_CACHE", Path.home() / ".cache" / "dockjax" / "jax"))
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        jax.config.update("jax_compilation_cache_dir", str(path))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    except OSError:
+        pass
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - macOS, Windows
+        return os.cpu_count() or 1
+
+
+def use_cpu_devices(n: int) -> int:
+    """Ask JAX for ``n`` CPU devices (before the process's first JAX computation). Batched
+    runs of :func:`dockjax.optimize.optimize` and the rows of
+    :meth:`dockjax.DockingProblem.evaluate` are then shared out over them
+    (:mod:`dockjax.devices`). Returns the number of CPU devices JAX has: unchanged if its
+    backend was already initialised."""
+    try:
+        jax.config.update("jax_num_cpu_devices", int(n))
+    except RuntimeError:  # the backend exists already
+        pass
+    return len(jax.devices("cpu"))
+
+
+def claim_devices(devices: int | None) -> int:
+    """A command line's ``--devices`` (None: one per usable core): ask JAX for that many CPU
+    devices. → the count JAX has. Raises ValueError, naming the option, for anything but an
+    integer >= 1; notes on stderr when JAX's backend already had another count."""
+    checks.optional_integer("--devices", devices, 1)
+    have = use_cpu_devices(devices or usable_cores())
+    if devices is not None and have != devices:
+        print(f"note: JAX's CPU backend was already initialised with {have} device(s); using them",
+              file=sys.stderr)
+    return have
