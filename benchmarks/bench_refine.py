@@ -18,12 +18,12 @@ import time
 
 import numpy as np
 
-from dockjax.comparison import best_known_cached, hv_reference
+from dockjax.comparison import hv_reference
 from dockjax.config import BEST_KNOWN
 from dockjax.metrics import hypervolume_numpy
 from dockjax.optimize import optimize
 from dockjax.problem import make_problem
-from dockjax.refine import refine
+from dockjax.refine import best_known_cached, refine
 
 
 def main() -> None:

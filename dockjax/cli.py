@@ -41,35 +41,57 @@ def _error(message: str) -> int:
 # -------------------------------------------------------------------------------- sweep
 @dataclass(frozen=True)
 class SweepArgs:
-    """Large hyper-parameter sweeps that never lose work: every finished chunk of runs is saved atomically in
-    --out, and re-running the same command after an interruption resumes where it stopped. Writes runs.csv
-    (one row per run), summary.csv, figures. See docs/cli.md for the file layout."""
+    """Hyper-parameter studies that never lose work: one or more algorithms, any of their hyper-parameters (grids,
+    random or Sobol samples), population sizes and iteration counts, on common seeds or raced; every finished chunk of
+    runs is saved atomically in --out, and re-running the same command resumes where it stopped. Writes runs.csv,
+    summary.csv (intervals, tests against the best, effect sizes), report.md and figures. See docs/cli.md."""
 
+    algorithm: tuple[Algorithm, ...] = ("imocs",)
+    """Optimiser(s); several give a head-to-head on common seeds."""
+    param: tuple[str, ...] = ()
+    """Hyper-parameter values: NAME=v1,v2,... (a grid) or NAME=lo:hi (a range, sampled by --design); NAME is a
+    Params field (e.g. rho, p_a, eta_c, w) or algorithm.field (e.g. nsga2.eta_m)."""
     rho: tuple[float, ...] = config.SWEEP_RHO
-    """Grid of the Bernoulli-map parameter ρ, each in (0, 1). IMOCS only; ignored (one value) for mocs, nsga2, mopso."""
+    """IMOCS's ρ grid, each in (0, 1) (the same as --param imocs.rho=...)."""
     alpha_max: tuple[float, ...] = config.SWEEP_ALPHA_MAX
-    """Grid of the maximum step α_max, each > 0. IMOCS only; ignored (one value) for mocs, nsga2, mopso."""
+    """IMOCS's α_max grid, each > 0 (the same as --param imocs.alpha_max=...)."""
     pop: tuple[int, ...] = (config.POP_SIZE,)
     """Population size(s), each >= 4 (one compilation per size)."""
+    iters: tuple[int, ...] = (config.SWEEP_ITERS,)
+    """Iteration count(s) per run."""
+    budget: int | None = None
+    """Budget-matched design: iterations = BUDGET // population for each --pop (instead of --iters)."""
+    design: Literal["grid", "random", "sobol"] = "grid"
+    """How the ranges of --param are sampled: grid (no ranges), random or sobol."""
+    samples: int = 0
+    """Points drawn from the box of the --param ranges (with --design random or sobol)."""
+    design_seed: int = 0
+    """Seed of the random or Sobol samples."""
     seeds: int = config.SWEEP_SEEDS
-    """Runs per setting: seeds 0 .. N-1 (the same seeds for every setting)."""
-    iters: int = config.SWEEP_ITERS
-    """Iterations per run."""
-    algorithm: Algorithm = "imocs"
-    """Optimiser. ρ/α_max apply to IMOCS only; for the others the grid is a single setting."""
+    """Runs per setting: seeds 0 .. N-1 (the same seeds for every setting); with --race, the seed budget."""
+    race: bool = False
+    """Race the settings: seeds in rounds, dropping settings significantly worse than the best (Friedman, then
+    Conover's post-hoc test)."""
+    race_min_seeds: int = 5
+    """Seeds every setting gets before the first elimination."""
+    race_alpha: float = 0.05
+    """Significance level of the race's tests."""
     preset: Preset = "paper"
     """Problem preset: paper (h in [3.5, 10] s) or wide (h in [0.5, 10] s)."""
     refine_steps: int = 0
-    """Memetic finish: polish every run's final population with this many gradient-refinement steps
-    (dockjax.refine; the algorithm column then reads e.g. imocs+refine). 0: off."""
+    """Memetic finish: polish every run's final population with this many gradient-refinement steps (dockjax.refine;
+    the algorithm column then reads e.g. imocs+refine). 0: off."""
     out: Path = Path("results/sweep")
-    """Results folder (created). Re-run the same command on it to resume; a folder holding a different
-    configuration is refused."""
+    """Results folder (created). Re-run the same command on it to resume; a folder holding a different configuration
+    is refused."""
     chunk: int = config.SWEEP_CHUNK
     """Maximum runs per compiled call (part of the configuration: changing it refuses to resume)."""
+    reference: Literal["best-known", "pilot", "file"] = "best-known"
+    """Reference front of the indicators: the best-known front of the problem (computed once per problem and cached
+    in $DOCKJAX_FRONTS or ~/.cache/dockjax/fronts), a pilot of the first algorithm, or --reference-front."""
     reference_front: Path | None = None
-    """Best-known front (.npz with key 'front', or .csv with columns T, jerk) to score against; default: a
-    deterministic pilot computed at sweep start."""
+    """A stored front (.npz with key 'front', or .csv with columns T, jerk) to score against (implies --reference
+    file)."""
     backend: Literal["local", "dask"] = "local"
     """local: chunks run in this process (no service needed); dask: a Dask cluster."""
     scheduler: str | None = None
@@ -85,6 +107,26 @@ class SweepArgs:
     devices: int | None = None
     """CPU devices the runs of a chunk are sharded over (results are identical for any count; see
     docs/performance.md for the speed-up). Default: one per usable core. Not part of the configuration."""
+
+
+def _param_specs(args: SweepArgs):
+    """--param, plus IMOCS's --rho/--alpha-max grids unless --param names those fields."""
+    from .sweep import parse_param
+    from .sweep.design import ParamSpec
+
+    specs = [parse_param(p) for p in args.param]
+    named = {(s.algorithm, s.field) for s in specs}
+    for field, values, default in (("rho", args.rho, SweepArgs.rho), ("alpha_max", args.alpha_max,
+                                                                        SweepArgs.alpha_max)):
+        if (None, field) in named or ("imocs", field) in named:
+            if values != default:
+                raise ValueError(f"--{field.replace('_', '-')} and --param {field} both give {field}")
+            continue
+        if "imocs" in args.algorithm:
+            if not values:
+                raise ValueError(f"--{field.replace('_', '-')} grid is empty (give at least one value)")
+            specs.append(ParamSpec(field, "imocs", values=tuple(values)))
+    return specs
 
 
 def sweep(args: SweepArgs) -> int:
@@ -108,19 +150,22 @@ def sweep(args: SweepArgs) -> int:
     created: list[Path] = []
     try:
         try:
-            cfg, front = make_config(rho=args.rho, alpha_max=args.alpha_max, pop=args.pop, seeds=args.seeds,
-                                     iters=args.iters, algorithm=args.algorithm, preset=args.preset,
-                                     refine_steps=args.refine_steps, chunk=args.chunk,
-                                     reference_front=args.reference_front)
-        except ConfigError as exc:
+            specs = _param_specs(args)
+            cfg, front = make_config(algorithms=args.algorithm, params=specs, pop=args.pop, iters=args.iters,
+                                     budget=args.budget, design=args.design, samples=args.samples,
+                                     design_seed=args.design_seed, seeds=args.seeds, preset=args.preset,
+                                     refine_steps=args.refine_steps, chunk=args.chunk, reference=args.reference,
+                                     reference_front=args.reference_front, race=args.race,
+                                     race_min_seeds=args.race_min_seeds, race_alpha=args.race_alpha)
+        except ValueError as exc:
             raise ConfigError("; ".join([str(exc), *errors])) from None
         if errors:
             raise ConfigError("; ".join(errors))
         created = prepare_folder(args.out, cfg)
     except ConfigError as exc:
         return _error(str(exc))
-    if not cfg.has_grid and (args.rho != SweepArgs.rho or args.alpha_max != SweepArgs.alpha_max):
-        print(f"note: --rho and --alpha-max apply to IMOCS only; {cfg.algorithm} runs one setting per population size")
+    if "imocs" not in args.algorithm and (args.rho != SweepArgs.rho or args.alpha_max != SweepArgs.alpha_max):
+        print("note: --rho and --alpha-max apply to IMOCS only")
     enable_compilation_cache()
     t0 = time.perf_counter()
     try:
@@ -134,7 +179,7 @@ def sweep(args: SweepArgs) -> int:
               file=sys.stderr)
         return 130
     except RuntimeError as exc:
-        if created and not any((Path(args.out) / "chunks").glob("chunk-*.npz")):
+        if created and not any((Path(args.out) / "chunks").glob("round-*.npz")):
             remove_created(created)
         print(f"error: {exc}", file=sys.stderr)
         return 1
@@ -207,8 +252,9 @@ def compare(args: CompareArgs) -> int:
     if errors:
         return _error("; ".join(errors))
     claim_devices(args.devices)  # before any JAX computation: each device runs its share of the runs
-    from .comparison import best_known_cached, refine_rows, run_study, study_right_arm, summary_table, write_study
+    from .comparison import refine_rows, run_study, study_right_arm, summary_table, write_study
     from .problem import make_problem
+    from .refine import best_known_cached
 
     enable_compilation_cache()
     t0 = time.perf_counter()

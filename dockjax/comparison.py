@@ -23,9 +23,9 @@ from . import config, metrics, plots, select
 from .io import atomic_savez, atomic_write_text
 from .optimize import Result, optimize, refine_result
 from .problem import DockingProblem, bucket_rows, make_problem
-from .refine import FrontResult, best_known_front
+from .refine import FrontResult
 
-__all__ = ["study_right_arm", "refine_rows", "hv_reference", "best_known_cached", "run_study", "Study",
+__all__ = ["study_right_arm", "refine_rows", "hv_reference", "run_study", "Study",
            "summary_table", "write_study"]
 
 INDICATORS = ("ONVG", "GD", "SP", "IGD", "HV", "HV_fraction")
@@ -90,25 +90,6 @@ class Study:
         return (f"non-dominated union of every final feasible set ({len(self.reference_front)} points)")
 
 
-def best_known_cached(problem: DockingProblem, path: Path | None = None, log=print, **settings) -> FrontResult:
-    """:func:`dockjax.refine.best_known_front` of ``problem`` (settings default to
-    :data:`dockjax.config.BEST_KNOWN`), reused from ``path`` (an ``.npz``) when that file was written for
-    the same problem and settings, else computed and written there atomically."""
-    settings = {**config.BEST_KNOWN, **settings}
-    key = json.dumps({"problem": repr(problem), "right_arm": problem.right_arm,
-                      **{k: v for k, v in settings.items() if k != "rows"}}, sort_keys=True)
-    if path is not None and Path(path).exists():
-        with np.load(path) as d:
-            if str(d["key"]) == key:
-                return FrontResult(X=d["X"], F=d["F"], G=d["G"], targets=d["targets"], seconds=float(d["seconds"]))
-    front = best_known_front(problem, **settings)
-    log(f"best-known front: {len(front.F)} points in {front.seconds:.1f} s (compile included)")
-    if path is not None:
-        atomic_savez(path, {"X": front.X, "F": front.F, "G": front.G, "targets": front.targets,
-                            "seconds": front.seconds, "key": np.array(key)})
-    return front
-
-
 def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), seeds=range(31),
               pop_size: int = config.POP_SIZE, n_iter: int = config.N_ITER, refine_steps: int = 0,
               best_known: FrontResult | None = None, right_arm: str = "auto", refine_rows: int | None = None,
@@ -117,7 +98,7 @@ def run_study(preset: str, *, algorithms=("nsga2", "mopso", "mocs", "imocs"), se
 
     ``refine_steps > 0`` adds ``"imocs+refine"``: the IMOCS runs finished by gradient
     refinement (:func:`dockjax.algorithms.refine_result`). ``best_known`` (from
-    :func:`best_known_cached`) becomes the reference front of the indicators; without it the
+    :func:`dockjax.refine.best_known_cached`) becomes the reference front of the indicators; without it the
     reference is the non-dominated union of every final feasible set. ``right_arm``: the
     problem's right-arm treatment (:func:`study_right_arm`); ``refine_rows``: rows per
     compiled call of the refinement (:func:`refine_rows`; default its own bucket).

@@ -90,7 +90,7 @@ PLAN_REFINE_STEPS = 300
 # -- the sweep (the main job) ---------------------------------------------------------------
 SWEEP_RHO: tuple[float, ...] = (0.3, 0.4, 0.5)
 SWEEP_ALPHA_MAX: tuple[float, ...] = (0.05, 0.1, 0.2)
-SWEEP_SEEDS = 2
+SWEEP_SEEDS = 5
 SWEEP_ITERS = 50
 SWEEP_CHUNK = 40
 """Most runs per compiled call of a sweep."""

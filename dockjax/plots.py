@@ -17,7 +17,7 @@ from . import config
 from .io import atomic_write
 
 __all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence", "plot_heatmap",
-           "plot_median_iqr", "plot_front_groups"]
+           "plot_median_iqr", "plot_front_groups", "plot_anytime", "plot_eaf"]
 
 COLORS = {"imocs": "C3", "mocs": "C1", "nsga2": "C0", "mopso": "C2", "imocs+refine": "C4"}
 LABELS = {"imocs": "IMOCS", "mocs": "MOCS", "nsga2": "NSGA-II", "mopso": "MOPSO",
@@ -37,7 +37,7 @@ def _finish(fig, ax, path, *, xlabel: str, ylabel: str, title: str, log_y: bool 
     if log_y:
         ax.set_yscale("log")
     ax.set_title(title)
-    ax.legend(fontsize=legend_size)
+    ax.legend(fontsize=legend_size, loc="upper right")
     ax.grid(alpha=0.3)
     return save(fig, path)
 
@@ -159,3 +159,52 @@ def plot_front_groups(groups: dict[str, list[np.ndarray]], reference: np.ndarray
                 first = False
     return _finish(fig, ax, path, xlabel="total time T [s]", ylabel="jerk objective (Eq. 25)", title=title,
                    log_y=True, legend_size=7)
+
+
+def plot_anytime(curves: dict[str, tuple[np.ndarray, np.ndarray]], path, *, title: str) -> Path:
+    """Median and interquartile band over runs of a quantity against evaluations:
+    ``label → (evaluations (k,), values (runs, k))``."""
+    fig, ax = _axes()
+    for g, (label, (x, H)) in enumerate(curves.items()):
+        q1, med, q3 = np.percentile(H, [25, 50, 75], axis=0)
+        ax.plot(x, med, color=f"C{g}", label=label)
+        ax.fill_between(x, q1, q3, color=f"C{g}", alpha=0.2)
+    return _finish(fig, ax, path, xlabel="evaluations", ylabel="hypervolume (normalised)", title=title,
+                   legend_size=7)
+
+
+def plot_eaf(surface_a: np.ndarray, surface_b: np.ndarray, diff: np.ndarray, label_a: str, label_b: str,
+             runs_a: int, runs_b: int, reference: np.ndarray, path) -> Path:
+    """Median attainment surfaces of two settings (points (k, 2) each) and their EAF
+    difference (``moocore.eafdiff(..., rectangles=True)``: rows ``x0, y0, x1, y1, d`` with
+    d = runs of A − runs of B attaining the rectangle), in objective space. The difference is
+    painted onto a grid (linear in T, logarithmic in jerk) and drawn as one image."""
+    fig, ax = _axes(figsize=(7.5, 5))
+    pts = np.concatenate([reference, surface_a, surface_b])
+    lo, hi = pts.min(axis=0) * np.array([0.98, 0.9]), pts.max(axis=0) * 1.05
+    xs = np.linspace(lo[0], hi[0], 401)
+    ys = np.geomspace(lo[1], hi[1], 301)
+    xc, yc = 0.5 * (xs[1:] + xs[:-1]), np.sqrt(ys[1:] * ys[:-1])
+    img = np.zeros((yc.size, xc.size))
+    nz = diff[diff[:, 4] != 0]
+    i0, i1 = np.searchsorted(xc, nz[:, 0]), np.searchsorted(xc, nz[:, 2])
+    j0, j1 = np.searchsorted(yc, nz[:, 1]), np.searchsorted(yc, nz[:, 3])
+    for a, b, c, d, v in zip(j0, j1, i0, i1, nz[:, 4]):
+        img[a:b, c:d] = v
+    scale = max(runs_a, runs_b)
+    im = ax.pcolormesh(xs, ys, img / scale, cmap="RdBu_r", vmin=-1, vmax=1, shading="flat", rasterized=True)
+    fig.colorbar(im, ax=ax, label="(runs of the first − runs of the second attaining) / runs")
+    for surf, label, color in ((surface_a, label_a, "C3"), (surface_b, label_b, "C0")):
+        s = surf[np.argsort(surf[:, 0])]
+        ax.plot(s[:, 0], s[:, 1], drawstyle="steps-post", color=color, lw=1.5, label=f"median attainment: {label}")
+    r = reference[np.argsort(reference[:, 0])]
+    ax.plot(r[:, 0], r[:, 1], "-", color="0.3", lw=0.8, label="reference front")
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_yscale("log")
+    ax.set_xlabel("total time T [s]")
+    ax.set_ylabel("jerk objective (Eq. 25)")
+    ax.set_title("EAF difference (red: attained more often by the first, blue: by the second)", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.grid(alpha=0.3)
+    return save(fig, path)

@@ -216,6 +216,16 @@ class DockingProblem:
         that both settings take the same paths."""
         return _control_box(self.start, self.goal, self.margin)
 
+    def identity(self) -> dict:
+        """Every field that decides the problem's scores, as plain JSON data (host-side)."""
+        out = {}
+        for f in dataclasses.fields(self):
+            if not f.init or f.name == "box":
+                continue
+            v = getattr(self, f.name)
+            out[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple, list)) else v
+        return out
+
     def with_right_arm(self, mode: str) -> "DockingProblem":
         """The same problem with another treatment of the right arm (``"bound"``,
         ``"taylor"`` or ``"adaptive"``); shares every array."""

@@ -43,9 +43,12 @@ Everything runs in float64 inside ``jax.enable_x64(True)``.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -55,6 +58,7 @@ import optax
 from . import checks, config
 from .decoding import decode, span_angles
 from .fusion import materialize
+from .io import atomic_savez
 from .limits import columns, maxima, maxima_screened
 from .metrics import nondominated_points
 from .objectives import mean_square_jerk
@@ -410,3 +414,39 @@ def best_known_front(
     return FrontResult(X=Xf[order], F=Ff[order], G=Gf[order], targets=targets,
                        seconds=time.perf_counter() - t0)
 
+
+BEST_KNOWN_FORMAT = 2
+"""Version of the best-known front's computation: part of the key of a cached front."""
+
+
+def best_known_key(problem: DockingProblem, **settings) -> str:
+    """The identity of a best-known front: the problem's fields, the settings (default
+    :data:`dockjax.config.BEST_KNOWN`) and :data:`BEST_KNOWN_FORMAT`, as sorted JSON."""
+    settings = {**config.BEST_KNOWN, **settings}
+    settings.pop("rows", None)
+    return json.dumps({"format": BEST_KNOWN_FORMAT, "problem": problem.identity(), **settings}, sort_keys=True)
+
+
+def best_known_cached(problem: DockingProblem, path=None, log=print, **settings) -> FrontResult:
+    """:func:`best_known_front` of ``problem`` (settings default to
+    :data:`dockjax.config.BEST_KNOWN`), reused from ``path`` (an ``.npz``; a folder: a file
+    named by the key's hash inside it) when that file was written for the same problem and
+    settings (:func:`best_known_key`), else computed and written there atomically."""
+    key = best_known_key(problem, **settings)
+    if path is not None and Path(path).is_dir():
+        path = Path(path) / f"best-known-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
+    if path is not None and Path(path).exists():
+        try:
+            with np.load(path, allow_pickle=False) as d:
+                if str(d["key"]) == key:
+                    log(f"best-known front: {len(d['F'])} points from {path}")
+                    return FrontResult(X=d["X"], F=d["F"], G=d["G"], targets=d["targets"],
+                                       seconds=float(d["seconds"]))
+        except (OSError, ValueError, KeyError):
+            pass  # unreadable: computed again
+    front = best_known_front(problem, **{**config.BEST_KNOWN, **settings})
+    log(f"best-known front: {len(front.F)} points in {front.seconds:.1f} s (compile included)")
+    if path is not None:
+        atomic_savez(path, {"X": front.X, "F": front.F, "G": front.G, "targets": front.targets,
+                            "seconds": front.seconds, "key": np.array(key)})
+    return front

@@ -19,6 +19,7 @@ if str(ROOT) not in sys.path:
 # refine tests). Test-only; the library never sets it.
 CACHE = ROOT / ".pytest-jax-cache"
 os.environ.setdefault("DOCKJAX_CACHE", str(CACHE))
+os.environ.setdefault("DOCKJAX_FRONTS", str(CACHE / "fronts"))  # best-known fronts of the sweep tests
 
 
 def pytest_configure(config):

@@ -1,8 +1,9 @@
-"""Resumable hyper-parameter sweeps (dockjax.sweep, ``dockjax sweep``, experiments/sweep.py).
+"""Resumable hyper-parameter studies (dockjax.sweep, ``dockjax sweep``, experiments/sweep.py).
 
-Tiny settings throughout (pop 8, 3 iterations, 2 × 2 grid, 2 seeds, chunks of 2 → 4 chunks).
-The end-to-end runs are subprocesses of the real CLI; they share JAX's persistent
-compilation cache, so only the first one compiles.
+Tiny settings throughout (pop 8, 3 iterations, 2 × 2 grid, 2 seeds, chunks of 2 → 4 chunks;
+the reference a pilot, so no best-known front is computed). The end-to-end runs are
+subprocesses of the real CLI; they share JAX's persistent compilation cache, so only the
+first one compiles.
 """
 
 from __future__ import annotations
@@ -19,13 +20,15 @@ import numpy as np
 import pytest
 
 from dockjax import cli, sweep
-from dockjax.sweep.config import PILOT_SEED0
+from dockjax.sweep.config import PILOT_SEED0, round_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "experiments" / "sweep.py"
 TINY = ["--pop", "8", "--iters", "3", "--rho", "0.3", "0.5", "--alpha-max", "0.1", "0.2",
-        "--seeds", "2", "--chunk", "2", "--no-progress"]
-FIGURES = ("heatmap_hv_pop8.png", "hv_vs_pop.png", "fronts_best_worst.png")
+        "--seeds", "2", "--chunk", "2", "--no-progress", "--reference", "pilot"]
+RACE = ["--pop", "8", "--iters", "3", "--rho", "0.3", "0.5", "--alpha-max", "0.1", "0.2",
+        "--seeds", "5", "--chunk", "4", "--no-progress", "--reference", "pilot", "--race", "--race-min-seeds", "2"]
+FIGURES = ("heatmap_hv_imocs_pop8_it3.png", "anytime_hv.png", "eaf.png", "fronts_best_worst.png")
 
 
 def _main(argv: list[str]) -> int:
@@ -39,8 +42,8 @@ def _env(**extra) -> dict:
     return env
 
 
-def _cli(out: Path, *extra: str, **popen) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(SCRIPT), *TINY, "--out", str(out), *extra], cwd=ROOT,
+def _cli(out: Path, *extra: str, base=TINY, **popen) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(SCRIPT), *base, "--out", str(out), *extra], cwd=ROOT,
                           env=_env(), capture_output=True, text=True, timeout=300, **popen)
 
 
@@ -60,24 +63,30 @@ def uninterrupted(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     return out, proc
 
 
-def test_end_to_end_writes_table_and_figures(uninterrupted):
+def test_end_to_end_writes_table_report_and_figures(uninterrupted):
     out, proc = uninterrupted
     rows = _table(out)
     assert rows[0] == list(sweep.COLUMNS[:-1])
     assert len(rows) == 1 + 8
     body = [dict(zip(rows[0], r)) for r in rows[1:]]
-    keys = [(float(r["rho"]), float(r["alpha_max"]), int(r["seed"])) for r in body]
+    keys = [(int(r["setting"]), int(r["seed"])) for r in body]
     assert keys == sorted(keys) and len(set(keys)) == 8  # sorted, every run once
     assert all(r["algorithm"] == "imocs" and r["pop"] == "8" and r["iterations"] == "3" for r in body)
     hv = np.array([float(r["HV"]) for r in body])
     assert np.all(np.isfinite(hv)) and np.all(hv >= 0)
-    assert sorted(p.name for p in (out / "chunks").iterdir()) == [f"chunk-{i:05d}.npz" for i in range(4)]
-    for name in ("config.json", "reference.npz", "summary.csv", "summary.md", "fronts.npz", *FIGURES):
+    assert sorted(p.name for p in (out / "chunks").iterdir()) == [f"round-000-chunk-{i:05d}.npz" for i in range(4)]
+    for name in ("config.json", "reference.npz", "summary.csv", "summary.md", "report.md", "fronts.npz", *FIGURES):
         assert (out / name).stat().st_size > 0, name
     assert not [p for p in out.rglob(".*")], "temporary files left behind"
     fronts = np.load(out / "fronts.npz")
-    assert fronts["offsets"][-1] == len(fronts["F"]) and len(fronts["run_id"]) == 8
-    assert "best by median HV" in proc.stdout and "IQR" in proc.stdout
+    assert fronts["offsets"][-1] == len(fronts["F"]) and len(fronts["setting"]) == 8
+    header = (out / "summary.csv").read_text().splitlines()[0].split(",")
+    for col in ("HV_ci_low", "HV_ci_high", "IGD+_ci_low", "p_holm", "A12_best_over", "tied_with_best", "status"):
+        assert col in header
+    # two seeds cannot tell four settings apart: no winner is crowned
+    assert "cannot name a winner" in proc.stdout and "tied" in proc.stdout
+    report = (out / "report.md").read_text()
+    assert "## Verdict" in report and "![eaf](eaf.png)" in report
 
 
 def test_kill_and_resume_gives_the_same_table(uninterrupted, tmp_path):
@@ -89,7 +98,7 @@ def test_kill_and_resume_gives_the_same_table(uninterrupted, tmp_path):
                             stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 240
-        while not list((out / "chunks").glob("chunk-*.npz")):
+        while not list((out / "chunks").glob("round-*.npz")):
             assert proc.poll() is None, "sweep ended before writing a chunk"
             assert time.monotonic() < deadline, "no chunk file written in time"
             time.sleep(0.1)
@@ -97,17 +106,43 @@ def test_kill_and_resume_gives_the_same_table(uninterrupted, tmp_path):
     finally:
         proc.kill()
         proc.wait()
-    before = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "chunks").glob("chunk-*.npz")}
+    before = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "chunks").glob("round-*.npz")}
     assert 1 <= len(before) < 4
     assert not (out / "runs.csv").exists()
 
     resumed = _cli(out)
     assert resumed.returncode == 0, resumed.stderr[-3000:]
-    assert f"resuming: {len(before)} of 4 chunks already done" in resumed.stdout
-    after = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "chunks").glob("chunk-*.npz")}
+    assert f"resuming, {len(before)} of 4 chunks already done" in resumed.stdout
+    after = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "chunks").glob("round-*.npz")}
     assert len(after) == 4
     assert {k: after[k] for k in before} == before  # chunks finished before the kill were not rewritten
     assert _table(out) == _table(full)
+
+
+def test_a_race_resumed_after_a_kill_equals_an_uninterrupted_race(tmp_path):
+    full = tmp_path / "race"
+    proc = _cli(full, base=RACE)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "round 0: seeds 0..1" in proc.stdout
+    out = tmp_path / "killed"
+    run = subprocess.Popen([sys.executable, str(SCRIPT), *RACE, "--out", str(out)], cwd=ROOT,
+                           env=_env(DOCKJAX_SWEEP_PAUSE="60"), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 240
+        # kill after round 0 (2 chunks) and the first chunk of round 1 are written
+        while len(list((out / "chunks").glob("round-*.npz"))) < 3:
+            assert run.poll() is None, "race ended early"
+            assert time.monotonic() < deadline, "chunk files not written in time"
+            time.sleep(0.1)
+        run.send_signal(signal.SIGKILL)
+    finally:
+        run.kill()
+        run.wait()
+    resumed = _cli(out, base=RACE)
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert _table(out) == _table(full)
+    assert (out / "summary.csv").read_text() == (full / "summary.csv").read_text()
+    assert sorted(p.name for p in (out / "chunks").iterdir()) == sorted(p.name for p in (full / "chunks").iterdir())
 
 
 def test_dask_backend_gives_the_same_table(uninterrupted, tmp_path):
@@ -117,7 +152,6 @@ def test_dask_backend_gives_the_same_table(uninterrupted, tmp_path):
     proc = _cli(out, "--backend", "dask", "--workers", "2")
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert _table(out) == _table(full)
-    assert sorted(p.name for p in (out / "chunks").iterdir()) == [f"chunk-{i:05d}.npz" for i in range(4)]
 
 
 def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
@@ -126,17 +160,16 @@ def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
     code = _main([*TINY, "--rho", "0.3", "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2
-    assert "different sweep configuration" in err and "rho" in err and len(err.strip().splitlines()) == 1
+    assert "different sweep configuration" in err and "settings" in err and len(err.strip().splitlines()) == 1
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == listing
     assert _main([*TINY, "--chunk", "3", "--out", str(out)]) == 2
     assert "chunk" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("extra, message", [
-    (["--rho", "0.3", "1.5"], "--rho values must be in (0, 1)"),
-    (["--rho", "0"], "--rho values must be in (0, 1)"),
-    (["--alpha-max", "0"], "--alpha-max values must be > 0"),
-    (["--alpha-max", "-0.1", "0.1"], "--alpha-max values must be > 0"),
+    (["--rho", "0.3", "1.5"], "rho (ρ) must be a number in (0, 1)"),
+    (["--rho", "0"], "rho (ρ) must be a number in (0, 1)"),
+    (["--alpha-max", "0"], "alpha_max (α_max) must be a number > 0"),
     (["--pop", "3"], "--pop values must be >= 4"),
     (["--rho"], "--rho grid is empty"),
     (["--pop"], "--pop grid is empty"),
@@ -144,13 +177,23 @@ def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
     (["--refine-steps", "-1"], "--refine-steps must be >= 0"),
     (["--scheduler", "tcp://localhost:1"], "--scheduler needs --backend dask"),
     (["--devices", "0"], "--devices must be an integer >= 1"),
+    (["--param", "imocs.sigma=0.3"], "unknown hyper-parameter for imocs; allowed: alpha_max, p_a, rho"),
+    (["--param", "p_a=1.5"], "p_a (p_a) must be a number in [0, 1]"),
+    (["--param", "rho"], "expected NAME=VALUES"),
+    (["--param", "rho=a,b"], "VALUES must be finite numbers"),
+    (["--param", "p_a=0.1:0.3"], "is a range: sample it with --design random or sobol"),
+    (["--algorithm", "mopso", "--param", "mopso.n_div=2.5"], "n_div (divisions) must be an integer >= 1"),
+    (["--param", "nsga2.eta_c=10"], "nsga2 is not among --algorithm"),
+    (["--param", "pop_size=4"], "set by --pop, --iters and --budget"),
+    (["--budget", "4"], "--budget 4 gives no iteration at --pop [8]"),
+    (["--rho", "0.4", "--param", "rho=0.3"], "--rho and --param rho both give rho"),
 ])
 def test_bad_input_exits_2_before_compiling_and_leaves_no_folder(tmp_path, capsys, extra, message):
     out = tmp_path / "new" / "sweep"
     code = _main([*TINY, *extra, "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2
-    assert message in err and err.startswith("error: ") and len(err.strip().splitlines()) == 1
+    assert message in err and err.startswith("error: ") and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "new").exists()
 
 
@@ -169,40 +212,97 @@ def test_unwritable_folder_exits_2(tmp_path, capsys):
     assert sorted(p.name for p in other.iterdir()) == ["notes.txt"]
 
 
-def test_cli_exit_code_2_in_a_subprocess(tmp_path):
+def test_an_unknown_parameter_exits_2_in_a_subprocess(tmp_path):
     out = tmp_path / "x"
-    proc = _cli(out, "--rho", "1.2")
+    proc = _cli(out, "--param", "imocs.beta=2")
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == ["error: --rho values must be in (0, 1), got [1.2]"]
+    assert proc.stderr.strip().splitlines() == [
+        "error: --param beta: unknown hyper-parameter for imocs; allowed: alpha_max, p_a, rho"]
     assert not out.exists()
 
 
 def _cfg(**kw) -> sweep.SweepConfig:
-    base = dict(algorithm="imocs", preset="paper", pop=(8,), rho=(0.3, 0.5), alpha_max=(0.1, 0.2), seeds=2,
-                iters=3, chunk=2, reference={"kind": "pilot"})
-    return sweep.SweepConfig(**{**base, **kw})
+    base = dict(algorithms=("imocs",), params=[sweep.ParamSpec("rho", "imocs", values=(0.3, 0.5)),
+                                               sweep.ParamSpec("alpha_max", "imocs", values=(0.1, 0.2))],
+                pop=(8,), iters=(3,), seeds=2, chunk=2, reference="pilot")
+    return sweep.make_config(**{**base, **kw})[0]
 
 
 def test_plan_is_balanced_padded_and_deterministic():
-    cfg = _cfg(pop=(8, 12), rho=(0.3, 0.4, 0.5), alpha_max=(0.05, 0.1, 0.2), chunk=16)
-    plan = sweep.plan_chunks(cfg)
+    cfg = _cfg(pop=(8, 12), params=[sweep.ParamSpec("rho", "imocs", values=(0.3, 0.4, 0.5)),
+                                    sweep.ParamSpec("alpha_max", "imocs", values=(0.05, 0.1, 0.2))], chunk=16)
+    alive = np.ones(len(cfg.settings), bool)
+    plan = sweep.plan_round(cfg, 0, alive, round_seeds(cfg, 0, 0, len(alive)))
     assert [(c.pop, len(c.seeds), c.n_real) for c in plan] == [(8, 9, 9), (8, 9, 9), (12, 9, 9), (12, 9, 9)]
-    assert sorted(i for c in plan for i in c.run_ids) == list(range(36))
-    assert plan == sweep.plan_chunks(cfg)
-    odd = sweep.plan_chunks(_cfg(rho=(0.3,), alpha_max=(0.1, 0.2, 0.3), seeds=1, chunk=2))
-    assert [(len(c.seeds), c.n_real) for c in odd] == [(2, 2), (2, 1)]
-    assert odd[-1].seeds == (0, 0) and odd[-1].alpha_max == (0.3, 0.3)  # padded with its own run
+    runs = sorted((s, k) for c in plan for s, k in zip(c.settings[:c.n_real], c.seeds[:c.n_real]))
+    assert runs == [(s, k) for s in range(18) for k in range(2)]
+    assert plan == sweep.plan_round(cfg, 0, alive, round_seeds(cfg, 0, 0, len(alive)))
+    # every run carries its own hyper-parameters
+    c = plan[0]
+    batch = dict(c.batch)
+    for j in range(c.n_real):
+        assert dict(cfg.settings[c.settings[j]].params) == {k: batch[k][j] for k in batch}
+    odd = _cfg(params=[sweep.ParamSpec("alpha_max", "imocs", values=(0.1, 0.2, 0.3))], seeds=1)
+    plan = sweep.plan_round(odd, 0, np.ones(3, bool), range(1))
+    assert [(len(c.seeds), c.n_real) for c in plan] == [(2, 2), (2, 1)]
+    assert plan[-1].seeds == (0, 0) and dict(plan[-1].batch)["alpha_max"] == (0.3, 0.3)  # padded with its own run
     pilot = sweep.pilot_spec(cfg)
-    assert len(pilot.seeds) == 9 and pilot.pop == 12 and min(pilot.seeds) >= PILOT_SEED0
+    assert pilot.pop == 12 and min(pilot.seeds) >= PILOT_SEED0 and pilot.batch == ()
 
 
-def test_other_algorithms_collapse_the_grid():
-    cfg = _cfg(algorithm="nsga2", rho=None, alpha_max=None, pop=(8, 12), seeds=3, chunk=16)
-    plan = sweep.plan_chunks(cfg)
-    assert cfg.n_runs() == 6 and len(plan) == 2
-    assert all(math.isnan(r) for c in plan for r in c.rho)
-    made, _ = sweep.make_config(algorithm="mopso", rho=(0.3, 0.4), alpha_max=(0.1,), pop=(8,))
-    assert made.rho is None and made.alpha_max is None and len(made.settings()) == 1
+def test_race_rounds_fill_a_chunk_with_the_survivors():
+    cfg = _cfg(seeds=31, chunk=40, race=True, race_min_seeds=5)
+    assert round_seeds(cfg, 0, 0, 25) == range(5)
+    assert round_seeds(cfg, 1, 5, 5) == range(5, 13)  # 40 // 5 seeds for 5 survivors
+    assert round_seeds(cfg, 2, 29, 5) == range(29, 31)  # capped at the budget
+    assert round_seeds(cfg, 1, 5, 60) == range(5, 6)  # at least one seed
+    alive = np.zeros(len(cfg.settings), bool)
+    alive[:2] = True
+    plan = sweep.plan_round(cfg, 1, alive, range(5, 13))
+    assert all(len(c.seeds) == 40 for c in plan)  # one compiled shape for every round of a race
+
+
+def test_designs_grid_samples_budget_and_head_to_head():
+    P = sweep.ParamSpec
+    specs = [P("p_a", None, values=(0.1, 0.2)), P("eta_c", "nsga2", values=(5, 15))]
+    s = sweep.build_settings(["imocs", "nsga2"], specs, pops=(50, 100), iters=(10,))
+    # p_a applies to IMOCS only (NSGA-II has no p_a); eta_c to NSGA-II
+    assert [(x.algorithm, x.pop, x.params) for x in s] == [
+        ("imocs", 50, (("p_a", 0.1),)), ("imocs", 50, (("p_a", 0.2),)), ("imocs", 100, (("p_a", 0.1),)),
+        ("imocs", 100, (("p_a", 0.2),)), ("nsga2", 50, (("eta_c", 5.0),)), ("nsga2", 50, (("eta_c", 15.0),)),
+        ("nsga2", 100, (("eta_c", 5.0),)), ("nsga2", 100, (("eta_c", 15.0),))]
+    budget = sweep.build_settings(["mocs"], [], pops=(50, 100, 150), budget=15000)
+    assert [(x.pop, x.iters) for x in budget] == [(50, 300), (100, 150), (150, 100)]
+    a = sweep.build_settings(["imocs"], [P("rho", None, lo=0.1, hi=0.9)], pops=(8,), iters=(3,), design="sobol",
+                             samples=8, seed=3)
+    b = sweep.build_settings(["imocs"], [P("rho", None, lo=0.1, hi=0.9)], pops=(8,), iters=(3,), design="sobol",
+                             samples=8, seed=3)
+    rho = [x.value("rho") for x in a]
+    assert a == b and len(set(rho)) == 8 and all(0.1 <= r <= 0.9 for r in rho)
+    c = sweep.build_settings(["imocs"], [P("rho", None, lo=0.1, hi=0.9)], pops=(8,), iters=(3,), design="random",
+                             samples=8, seed=4)
+    assert [x.value("rho") for x in c] != rho
+
+
+def test_best_known_reference_is_computed_once_per_problem_and_recorded(tmp_path, monkeypatch):
+    """The default reference: the best-known front, cached on disk by the problem's identity
+    (tiny settings here), recorded in the folder; a second study of the same problem reuses it."""
+    from dockjax import config
+
+    monkeypatch.setattr(config, "BEST_KNOWN", dict(n_points=4, n_perturbed=0, steps=5))
+    monkeypatch.setenv("DOCKJAX_FRONTS", str(tmp_path / "fronts"))
+    args = [a for a in TINY if a not in ("--reference", "pilot")]
+    assert _main([*args, "--out", str(tmp_path / "a")]) == 0
+    cached = list((tmp_path / "fronts").glob("best-known-*.npz"))
+    assert len(cached) == 1
+    mtime = cached[0].stat().st_mtime_ns
+    cfg = sweep.load_config(tmp_path / "a")
+    assert cfg.reference["kind"] == "best-known"
+    ref = np.load(tmp_path / "a" / "reference.npz")
+    assert str(ref["source"]) == "best-known" and len(ref["front"]) >= 2
+    assert _main([*args, "--seeds", "1", "--out", str(tmp_path / "b")]) == 0
+    assert cached[0].stat().st_mtime_ns == mtime  # reused, not recomputed
+    np.testing.assert_array_equal(np.load(tmp_path / "b" / "reference.npz")["front"], ref["front"])
 
 
 def test_reference_front_file(tmp_path):
@@ -221,10 +321,9 @@ def test_reference_front_file(tmp_path):
 
 def test_memetic_option_is_part_of_the_configuration():
     plain, memetic = _cfg(), _cfg(refine_steps=50)
-    # a folder written without the option keeps its identity (still resumable) ...
-    assert "refine_steps" not in plain.identity() and memetic.identity()["refine_steps"] == 50
-    assert plain.identity() != memetic.identity()  # ... and refuses to mix with a memetic sweep
-    plan = sweep.plan_chunks(memetic)
+    assert plain.identity() != memetic.identity()
+    plan = sweep.plan_round(memetic, 0, np.ones(4, bool), range(2))
     assert all(c.refine_steps == 50 and c.label == "imocs+refine" for c in plan)
     assert sweep.pilot_spec(memetic).refine_steps == 50
-    assert sweep.plan_chunks(plain)[0].label == "imocs"
+    assert sweep.plan_round(plain, 0, np.ones(4, bool), range(2))[0].label == "imocs"
+    assert math.isnan(plain.settings[0].value("w"))

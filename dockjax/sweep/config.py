@@ -1,35 +1,40 @@
 """What a sweep is: its configuration (the identity that decides its numbers), the
-assignment of its runs to chunks, its reference definition, and the validation of a
-request. Nothing here computes or writes."""
+assignment of its runs to rounds and chunks, its reference definition, and the validation of
+a request. Nothing here computes or writes.
+
+A study without racing is one round of every setting × every seed. A race (``race``) runs
+seeds in rounds: round 0 the first ``min_seeds`` seeds of every setting, each later round
+as many further seeds of the surviving settings as fill one chunk (at least one); which
+settings survive a round is decided from the scores of the rounds before it
+(:mod:`dockjax.sweep.race`), so the plan of every round is a function of the
+configuration and of results that are themselves reproduced bit for bit.
+"""
 
 from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from .. import algorithms, config
-from ..algorithms import imocs
+from .. import config
 from ..metrics import nondominated_points
+from .design import ParamSpec, Setting, build_settings, static_key, traced_params
 from .files import load_npz
 
-__all__ = ["FORMAT", "GRID_ALGORITHMS", "PILOT_SEED0", "PILOT_HYPER", "COLUMNS", "INDICATOR_COLUMNS", "ConfigError",
-           "SweepConfig", "ChunkSpec", "plan_chunks", "pilot_spec", "load_front_file", "make_config"]
+__all__ = ["FORMAT", "PILOT_SEED0", "COLUMNS", "INDICATOR_COLUMNS", "ConfigError", "SweepConfig", "ChunkSpec",
+           "round_seeds", "plan_round", "pilot_spec", "load_front_file", "make_config"]
 
-FORMAT = "dockjax-sweep/1"
-GRID_ALGORITHMS = ("imocs",)
-"""Algorithms with the ρ and α_max hyper-parameters (IMOCS only)."""
+FORMAT = "dockjax-sweep/2"
 PILOT_SEED0 = 1_000_000
-PILOT_HYPER = {k: getattr(imocs.Params(), k) for k in ("rho", "alpha_max")}
-"""The pilot's hyper-parameters: IMOCS's defaults."""
-COLUMNS = ("algorithm", "pop", "rho", "alpha_max", "seed", "iterations", "HV", "IGD", "IGD+",
-           "GD", "SP", "ONVG", "T_min", "T_max", "jerk_min", "jerk_max", "chunk", "wall_s")
-"""Columns of ``runs.csv`` (one row per run)."""
+"""First seed of the reference pilot (disjoint from a study's seeds)."""
 INDICATOR_COLUMNS = ("HV", "IGD", "IGD+", "GD", "SP", "ONVG")
+COLUMNS = ("setting", "algorithm", "pop", "iterations", "params", "seed", *INDICATOR_COLUMNS, "T_min", "T_max",
+           "jerk_min", "jerk_max", "round", "chunk", "wall_s")
+"""Columns of ``runs.csv`` (one row per run; ``params`` is space-separated ``name=value`` pairs)."""
 
 
 class ConfigError(ValueError):
@@ -40,98 +45,110 @@ class ConfigError(ValueError):
 class SweepConfig:
     """The identity of a sweep: everything that decides its numbers."""
 
-    algorithm: str
+    settings: tuple[Setting, ...]
     preset: str
-    pop: tuple[int, ...]
-    rho: tuple[float, ...] | None
-    alpha_max: tuple[float, ...] | None
     seeds: int
-    iters: int
+    """Seeds per setting (the seed budget of a race)."""
     chunk: int
     reference: dict
     refine_steps: int = 0
+    race: dict | None = None
+    """None, or ``{"min_seeds": m, "alpha": a}``."""
 
     def identity(self) -> dict:
-        d = asdict(self)
-        if not self.refine_steps:  # folders written before the option existed stay resumable
-            d.pop("refine_steps")
-        d["pop"] = list(self.pop)
-        d["rho"] = None if self.rho is None else list(self.rho)
-        d["alpha_max"] = None if self.alpha_max is None else list(self.alpha_max)
-        return {"format": FORMAT, **d, "hv_ref": config.HV_REFERENCE,
+        return {"format": FORMAT, "preset": self.preset, "settings": [s.identity() for s in self.settings],
+                "seeds": self.seeds, "chunk": self.chunk, "reference": self.reference,
+                "refine_steps": self.refine_steps, "race": self.race, "hv_ref": config.HV_REFERENCE,
                 "normalisation": "ideal and nadir of reference.npz's front"}
 
     @property
-    def has_grid(self) -> bool:
-        return self.algorithm in GRID_ALGORITHMS
-
-    def settings(self) -> list[tuple[int, float, float]]:
-        rhos = self.rho if self.has_grid else (math.nan,)
-        alphas = self.alpha_max if self.has_grid else (math.nan,)
-        return [(p, r, a) for p in self.pop for r in rhos for a in alphas]
+    def algorithms(self) -> list[str]:
+        return list(dict.fromkeys(s.algorithm for s in self.settings))
 
     def n_runs(self) -> int:
-        return len(self.settings()) * self.seeds
+        """Runs of the full grid (every setting × every seed)."""
+        return len(self.settings) * self.seeds
 
 
 @dataclass(frozen=True)
 class ChunkSpec:
-    """One compiled call: ``len(seeds)`` runs (``n_real`` real, the rest padding)."""
+    """One compiled call: ``len(seeds)`` runs of one algorithm, population and iteration
+    count (``n_real`` real, the rest padding); ``batch`` the per-run hyper-parameters."""
 
+    round: int
     index: int
-    algorithm: str
     preset: str
+    algorithm: str
     pop: int
     iters: int
-    run_ids: tuple[int, ...]
+    static_params: tuple[tuple[str, float], ...]
+    settings: tuple[int, ...]
     seeds: tuple[int, ...]
-    rho: tuple[float, ...]
-    alpha_max: tuple[float, ...]
+    batch: tuple[tuple[str, tuple[float, ...]], ...]
     n_real: int
     refine_steps: int = 0
 
     @property
     def label(self) -> str:
-        """The algorithm column: ``imocs`` or, with the memetic finish, ``imocs+refine``."""
+        """The algorithm column: e.g. ``imocs`` or, with the memetic finish, ``imocs+refine``."""
         return f"{self.algorithm}+refine" if self.refine_steps else self.algorithm
 
     @property
     def name(self) -> str:
-        return f"chunk-{self.index:05d}.npz"
+        return f"round-{self.round:03d}-chunk-{self.index:05d}.npz"
+
+
+def round_seeds(cfg: SweepConfig, round_index: int, seeds_done: int, n_alive: int) -> range:
+    """The seeds of a round: every seed without racing; in a race, ``min_seeds`` first, then
+    as many as fill one chunk with the ``n_alive`` survivors (at least one), up to the budget."""
+    if cfg.race is None:
+        return range(cfg.seeds) if round_index == 0 else range(0)
+    if round_index == 0:
+        return range(min(cfg.race["min_seeds"], cfg.seeds))
+    k = max(1, cfg.chunk // max(n_alive, 1))
+    return range(seeds_done, min(cfg.seeds, seeds_done + k))
 
 
 def _chunk_size(n: int, limit: int) -> int:
     return math.ceil(n / math.ceil(n / limit))
 
 
-def plan_chunks(cfg: SweepConfig) -> list[ChunkSpec]:
-    """Runs (sorted by pop, ρ, α_max, seed; run id = position) cut into chunks per population
-    size; a deterministic function of the configuration."""
-    runs = [(p, r, a, s) for (p, r, a) in cfg.settings() for s in range(cfg.seeds)]
+def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds: range) -> list[ChunkSpec]:
+    """The chunks of one round: the runs (alive setting, seed), grouped by compiled program
+    (:func:`~dockjax.sweep.design.static_key`), cut into chunks; balanced sizes without
+    racing, chunks of exactly ``chunk`` runs in a race (one compiled shape for every
+    round). Short chunks are padded with repeats of their own runs, which are dropped."""
+    groups: dict[tuple, list[tuple[int, int]]] = {}
+    for i, s in enumerate(cfg.settings):
+        if alive[i]:
+            for seed in seeds:
+                groups.setdefault(static_key(s), []).append((i, seed))
     chunks: list[ChunkSpec] = []
-    for pop in cfg.pop:
-        ids = [i for i, run in enumerate(runs) if run[0] == pop]
-        size = _chunk_size(len(ids), cfg.chunk)
-        for k in range(0, len(ids), size):
-            real = ids[k : k + size]
+    for key, runs in groups.items():
+        algorithm, pop, iters, statics = key
+        size = cfg.chunk if cfg.race is not None else _chunk_size(len(runs), cfg.chunk)
+        for k in range(0, len(runs), size):
+            real = runs[k:k + size]
             padded = [real[j % len(real)] for j in range(size)]
-            chunks.append(ChunkSpec(
-                index=len(chunks), algorithm=cfg.algorithm, preset=cfg.preset, pop=pop,
-                iters=cfg.iters, run_ids=tuple(real), seeds=tuple(runs[i][3] for i in padded),
-                rho=tuple(runs[i][1] for i in padded), alpha_max=tuple(runs[i][2] for i in padded),
-                n_real=len(real), refine_steps=cfg.refine_steps))
+            names = sorted(traced_params(cfg.settings[padded[0][0]]))
+            batch = tuple((n, tuple(traced_params(cfg.settings[i])[n] for i, _ in padded)) for n in names)
+            chunks.append(ChunkSpec(round=round_index, index=len(chunks), preset=cfg.preset, algorithm=algorithm,
+                                    pop=pop, iters=iters, static_params=statics,
+                                    settings=tuple(i for i, _ in padded), seeds=tuple(s for _, s in padded),
+                                    batch=batch, n_real=len(real), refine_steps=cfg.refine_steps))
     return chunks
 
 
 def pilot_spec(cfg: SweepConfig) -> ChunkSpec:
-    """The reference pilot: one chunk of the largest population, default hyper-parameters."""
-    size = _chunk_size(len(cfg.settings()) // len(cfg.pop) * cfg.seeds, cfg.chunk)
-    rho = PILOT_HYPER["rho"] if cfg.has_grid else math.nan
-    alpha = PILOT_HYPER["alpha_max"] if cfg.has_grid else math.nan
-    return ChunkSpec(index=-1, algorithm=cfg.algorithm, preset=cfg.preset, pop=max(cfg.pop),
-                     iters=cfg.iters, run_ids=tuple(range(size)),
-                     seeds=tuple(PILOT_SEED0 + i for i in range(size)), rho=(rho,) * size,
-                     alpha_max=(alpha,) * size, n_real=size, refine_steps=cfg.refine_steps)
+    """The reference pilot: one chunk of the first algorithm at its default hyper-parameters,
+    its largest population and its largest iteration count, seeds from :data:`PILOT_SEED0`."""
+    first = cfg.settings[0].algorithm
+    mine = [s for s in cfg.settings if s.algorithm == first]
+    pop, iters = max(s.pop for s in mine), max(s.iters for s in mine)
+    size = min(cfg.chunk, max(2, len(mine) * cfg.seeds))
+    return ChunkSpec(round=-1, index=0, preset=cfg.preset, algorithm=first, pop=pop, iters=iters,
+                     static_params=(), settings=(-1,) * size, seeds=tuple(PILOT_SEED0 + i for i in range(size)),
+                     batch=(), n_real=size, refine_steps=cfg.refine_steps)
 
 
 def _sha256(a: np.ndarray) -> str:
@@ -168,65 +185,69 @@ def load_front_file(path: Path) -> np.ndarray:
     return nondominated_points(F)
 
 
-def _grid(name: str, values: Iterable[float]) -> tuple[float, ...]:
-    return tuple(sorted({float(v) for v in values}))
-
-
-def make_config(*, rho=config.SWEEP_RHO, alpha_max=config.SWEEP_ALPHA_MAX, pop=(config.POP_SIZE,),
-                seeds: int = config.SWEEP_SEEDS, iters: int = config.SWEEP_ITERS, algorithm: str = "imocs",
-                preset: str = "paper", refine_steps: int = 0, chunk: int = config.SWEEP_CHUNK,
-                reference_front=None) -> tuple[SweepConfig, np.ndarray | None]:
+def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[ParamSpec] = (), pop=(config.POP_SIZE,),
+                iters: Sequence[int] = (config.SWEEP_ITERS,), budget: int | None = None, design: str = "grid",
+                samples: int = 0, design_seed: int = 0, seeds: int = config.SWEEP_SEEDS, preset: str = "paper",
+                refine_steps: int = 0, chunk: int = config.SWEEP_CHUNK, reference: str = "best-known",
+                reference_front=None, race: bool = False, race_min_seeds: int = 5, race_alpha: float = 0.05
+                ) -> tuple[SweepConfig, np.ndarray | None]:
     """Validate a sweep (nothing is written, nothing is compiled) and build its
-    configuration. Returns it and the loaded reference front (None for the pilot).
-    Raises ConfigError with every problem on one line, naming the options."""
+    configuration. ``reference``: ``"best-known"`` (default), ``"pilot"`` or ``"file"``
+    (``reference_front`` a path). Returns the configuration and the loaded reference front
+    (None unless read from a file). Raises ConfigError with every problem on one line,
+    naming the options."""
     errors: list[str] = []
-    has_grid = algorithm in GRID_ALGORITHMS
-    for name, vals, ok, rule in (
-        ("--rho", rho, lambda v: 0.0 < v < 1.0, "in (0, 1)"),
-        ("--alpha-max", alpha_max, lambda v: v > 0.0, "> 0"),
-    ):
-        if not vals:
-            errors.append(f"{name} grid is empty (give at least one value)")
-        elif has_grid:
-            bad = [v for v in vals if not (math.isfinite(v) and ok(v))]
-            if bad:
-                errors.append(f"{name} values must be {rule}, got {bad}")
     if not pop:
         errors.append("--pop grid is empty (give at least one population size)")
     bad_pop = [p for p in pop if p < 4]
     if bad_pop:
         errors.append(f"--pop values must be >= 4, got {bad_pop}")
-    for name, v, lo in (("--seeds", seeds, 1), ("--iters", iters, 1), ("--chunk", chunk, 1),
-                        ("--refine-steps", refine_steps, 0)):
+    if budget is None and not iters:
+        errors.append("--iters grid is empty (give at least one iteration count)")
+    if budget is None and any(i < 1 for i in iters):
+        errors.append(f"--iters values must be >= 1, got {[i for i in iters if i < 1]}")
+    for name, v, lo in (("--seeds", seeds, 1), ("--chunk", chunk, 1), ("--refine-steps", refine_steps, 0),
+                        ("--race-min-seeds", race_min_seeds, 2)):
         if v < lo:
-            errors.append(f"{name} must be >= {lo}, got {v}")
+            errors.append(f"--{name.lstrip('-')} must be >= {lo}, got {v}")
+    if budget is not None and budget < 1:
+        errors.append(f"--budget must be >= 1, got {budget}")
+    if not (0.0 < race_alpha < 1.0):
+        errors.append(f"--race-alpha must be in (0, 1), got {race_alpha}")
+    if design not in ("grid", "random", "sobol"):
+        errors.append(f"--design must be grid, random or sobol, got {design!r}")
     front = None
-    reference: dict[str, Any]
+    ref: dict[str, Any]
     if reference_front is not None:
-        try:
-            front = load_front_file(reference_front)
-            reference = {"kind": "file", "points": int(len(front)), "sha256": _sha256(front)}
-        except ConfigError as exc:
-            errors.append(str(exc))
-            reference = {}
+        reference = "file"
+    if reference == "file":
+        if reference_front is None:
+            errors.append("--reference file needs --reference-front FILE")
+            ref = {}
+        else:
+            try:
+                front = load_front_file(reference_front)
+                ref = {"kind": "file", "points": int(len(front)), "sha256": _sha256(front)}
+            except ConfigError as exc:
+                errors.append(str(exc))
+                ref = {}
+    elif reference == "pilot":
+        ref = {"kind": "pilot", "seeds_from": PILOT_SEED0, "hyper": "defaults", "pop": "largest",
+               "iters": "largest", "runs": "one chunk"}
+    elif reference == "best-known":
+        ref = {"kind": "best-known", **config.BEST_KNOWN}
     else:
-        reference = {"kind": "pilot", "seeds_from": PILOT_SEED0,
-                     "hyper": PILOT_HYPER if has_grid else "defaults",
-                     "pop": "largest", "iters": "the sweep's", "runs": "one chunk"}
+        errors.append(f"--reference must be best-known, pilot or file, got {reference!r}")
+        ref = {}
+    settings: list[Setting] = []
+    if not errors:
+        try:
+            settings = build_settings(algorithms, params, pop, iters, budget, design, samples, design_seed)
+        except ValueError as exc:
+            errors.append(str(exc))
     if errors:
         raise ConfigError("; ".join(errors))
-    cfg = SweepConfig(
-        algorithm=algorithm, preset=preset, pop=tuple(sorted(set(pop))),
-        rho=_grid("rho", rho) if has_grid else None,
-        alpha_max=_grid("alpha_max", alpha_max) if has_grid else None,
-        seeds=seeds, iters=iters, chunk=chunk, reference=reference,
-        refine_steps=refine_steps)
-    # the algorithm's own checks (compiles nothing)
-    algo = algorithms.get(cfg.algorithm)
-    try:
-        for p in cfg.pop:
-            hyper = {"rho": np.asarray(cfg.rho), "alpha_max": np.asarray(cfg.alpha_max)} if has_grid else {}
-            algorithms.make_params(algo, p, cfg.iters, **hyper)
-    except ValueError as exc:
-        raise ConfigError(str(exc)) from None
+    cfg = SweepConfig(settings=tuple(settings), preset=preset, seeds=seeds, chunk=chunk, reference=ref,
+                      refine_steps=refine_steps,
+                      race={"min_seeds": race_min_seeds, "alpha": race_alpha} if race else None)
     return cfg, front

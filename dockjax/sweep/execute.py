@@ -15,7 +15,7 @@ from .. import metrics
 from ..optimize import optimize
 from ..problem import make_problem
 from ..runtime import enable_compilation_cache
-from .config import GRID_ALGORITHMS, INDICATOR_COLUMNS, ChunkSpec
+from .config import INDICATOR_COLUMNS, ChunkSpec
 
 __all__ = ["run_chunk", "LocalBackend", "DaskBackend"]
 
@@ -32,27 +32,30 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
     ``reference``: {"front", "ideal", "nadir", "hv_ref"} or None (no indicators; the pilot).
     ``devices``: local devices the runs are sharded over (default all; see
     :func:`dockjax.optimize.optimize`; the results do not depend on it).
-    Returns the chunk's table columns (one entry per real run), ``front_F`` (every run's
-    distinct feasible non-dominated F, concatenated) and ``front_offsets``. Pure function of
-    its arguments (apart from ``wall_s``); runs on a Dask worker as well.
+    Returns the chunk's table columns (one entry per real run), ``history`` (runs,
+    iterations) the normalised hypervolume of each run's feasible set after every
+    iteration, ``front_F`` (every run's distinct feasible non-dominated F, concatenated) and
+    ``front_offsets``. A pure function of its arguments (apart from ``wall_s``); runs on a
+    Dask worker as well.
     """
     t0 = time.perf_counter()
-    batch = None
-    if spec.algorithm in GRID_ALGORITHMS:
-        batch = {"rho": np.asarray(spec.rho, np.float64), "alpha_max": np.asarray(spec.alpha_max, np.float64)}
+    batch = {name: np.asarray(values, np.float64) for name, values in spec.batch} or None
+    statics = {k: (int(v) if float(v).is_integer() else v) for k, v in spec.static_params}
+    hv_ref = scale = None
+    if reference is not None:
+        ideal, nadir = np.asarray(reference["ideal"]), np.asarray(reference["nadir"])
+        span = np.where(nadir > ideal, nadir - ideal, 1.0)
+        hv_ref, scale = ideal + float(reference["hv_ref"]) * span, float(np.prod(span))
     r = optimize(spec.algorithm, _problem(spec.preset), seeds=np.asarray(spec.seeds, np.int64),
-                 pop_size=spec.pop, n_iter=spec.iters, batch_params=batch,
-                 refine_steps=spec.refine_steps, devices=devices)
+                 pop_size=spec.pop, n_iter=spec.iters, batch_params=batch, hv_ref=hv_ref,
+                 refine_steps=spec.refine_steps, devices=devices, **statics)
     n = spec.n_real
     fronts = r.fronts()[:n]
     out: dict[str, np.ndarray] = {
-        "run_id": np.asarray(spec.run_ids, np.int64),
+        "setting": np.asarray(spec.settings[:n], np.int64),
         "algorithm": np.asarray([spec.label] * n),
-        "pop": np.full(n, spec.pop, np.int64),
-        "rho": np.asarray(spec.rho[:n], np.float64),
-        "alpha_max": np.asarray(spec.alpha_max[:n], np.float64),
         "seed": np.asarray(spec.seeds[:n], np.int64),
-        "iterations": np.full(n, spec.iters, np.int64),
+        "round": np.full(n, spec.round, np.int64),
         "chunk": np.full(n, spec.index, np.int64),
     }
     ext = np.array([[f[:, 0].min(), f[:, 0].max(), f[:, 1].min(), f[:, 1].max()] if len(f)
@@ -63,8 +66,8 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
         ind = metrics.indicators(r.F, r.front, reference["front"], hv_ref=float(reference["hv_ref"]),
                                  ideal=reference["ideal"], nadir=reference["nadir"])
         for k in INDICATOR_COLUMNS:
-            key = k if k in ind else {"IGD+": "IGDplus"}.get(k, k)
-            out[k] = np.asarray(ind[key])[:n].astype(np.int64 if k == "ONVG" else np.float64)
+            out[k] = np.asarray(ind[k])[:n].astype(np.int64 if k == "ONVG" else np.float64)
+        out["history"] = np.asarray(r.history[:n], np.float64) / scale
     out["front_F"] = np.concatenate([f for f in fronts] + [np.zeros((0, 2))]).astype(np.float64)
     out["front_offsets"] = np.cumsum([0] + [len(f) for f in fronts]).astype(np.int64)
     out["wall_s"] = np.full(n, (time.perf_counter() - t0) / len(spec.seeds))

@@ -1,135 +1,342 @@
-"""The report of a finished sweep folder: runs.csv, fronts.npz, summary.csv/.md (per
-setting, best median HV first), the printed table and the figures."""
+"""The report of a finished sweep folder: which settings are as good as the best, and how
+sure that is.
+
+Writes ``runs.csv`` (one row per run), ``fronts.npz``, ``summary.csv`` and ``summary.md``
+(per setting: the median and a bootstrap 95 % interval of HV and IGD+, the other
+indicators' medians, the mean Friedman rank, the Wilcoxon p-value against the best with
+Holm's correction, the Vargha–Delaney A₁₂ of the best over it, and whether it is tied with
+the best; for a race, the round it was eliminated in), ``report.md`` (the verdict, the
+table, the race's rounds and every figure) and the figures: anytime hypervolume against
+evaluations, the median attainment surfaces of the best and the default setting with their
+EAF difference (moocore), heat maps over two hyper-parameters, hypervolume against
+population size, and the fronts of the best and the worst setting.
+
+The verdict never crowns a winner the data cannot distinguish: the best setting by median
+HV is named together with every setting not significantly worse than it.
+"""
 
 from __future__ import annotations
 
+import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import moocore
 import numpy as np
+from scipy.stats import rankdata
 
-from .. import plots
+from .. import plots, stats
 from ..io import atomic_savez, atomic_write_text
-from .config import COLUMNS
+from .config import COLUMNS, INDICATOR_COLUMNS, SweepConfig, round_seeds
+from .design import Setting, symbol
 from .files import load_npz
+from .race import eliminate
 
-__all__ = ["load_table", "report"]
+__all__ = ["load_table", "load_config", "summarise", "report"]
+
+TOP_VIEWS = 4
+"""Settings drawn in the anytime view (the leading ones by median HV, and the default)."""
 
 
 def _fmt(v) -> str:
     if isinstance(v, (str, np.str_)):
         return str(v)
+    if isinstance(v, (bool, np.bool_)):
+        return str(bool(v))
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     return repr(float(v))
 
 
-def load_table(out: Path) -> tuple[dict[str, np.ndarray], list[np.ndarray]]:
-    """Every chunk file of ``out`` merged: columns sorted by run id, and each run's front."""
-    parts = [load_npz(p) for p in sorted((Path(out) / "chunks").glob("chunk-*.npz"))]
+def load_config(out: Path) -> SweepConfig:
+    """The configuration stored in ``out/config.json``."""
+    d = json.loads((Path(out) / "config.json").read_text())["identity"]
+    return SweepConfig(settings=tuple(Setting.from_identity(s) for s in d["settings"]), preset=d["preset"],
+                       seeds=int(d["seeds"]), chunk=int(d["chunk"]), reference=d["reference"],
+                       refine_steps=int(d["refine_steps"]), race=d["race"])
+
+
+def load_table(out: Path) -> tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Every chunk file of ``out`` merged, runs sorted by (setting, seed): the columns, each
+    run's front (k, 2) and each run's anytime hypervolume (iterations,)."""
+    parts = [load_npz(p) for p in sorted((Path(out) / "chunks").glob("round-*-chunk-*.npz"))]
     if not parts:
         raise RuntimeError(f"no chunk files in {out / 'chunks'}")
-    cols = {k: np.concatenate([p[k] for p in parts]) for k in ("run_id",) + COLUMNS}
-    fronts = [p["front_F"][o0:o1] for p in parts for o0, o1 in zip(p["front_offsets"][:-1], p["front_offsets"][1:])]
-    order = np.argsort(cols["run_id"], kind="stable")
-    return {k: v[order] for k, v in cols.items()}, [fronts[i] for i in order]
+    keys = ("setting", "algorithm", "seed", "round", "chunk", *INDICATOR_COLUMNS, "T_min", "T_max", "jerk_min",
+            "jerk_max", "wall_s")
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in keys}
+    fronts = [p["front_F"][a:b] for p in parts for a, b in zip(p["front_offsets"][:-1], p["front_offsets"][1:])]
+    history = [h for p in parts for h in p["history"]]
+    order = np.lexsort((cols["seed"], cols["setting"]))
+    return {k: v[order] for k, v in cols.items()}, [fronts[i] for i in order], [history[i] for i in order]
 
 
-def _settings_summary(cols: dict[str, np.ndarray]) -> list[dict]:
-    keys = list(zip(cols["pop"].tolist(), cols["rho"].tolist(), cols["alpha_max"].tolist()))
+def _matrix(cfg: SweepConfig, cols, column: str) -> np.ndarray:
+    M = np.full((len(cfg.settings), cfg.seeds), np.nan)
+    M[cols["setting"], cols["seed"]] = cols[column]
+    return M
+
+
+def replay_race(cfg: SweepConfig, hv: np.ndarray) -> list[np.ndarray]:
+    """The survivors after every round of a race (the decisions of
+    :func:`dockjax.sweep.resume.run_sweep`, taken again from the stored scores)."""
+    alive = np.ones(len(cfg.settings), bool)
+    rounds, done, r = [], 0, 0
+    while True:
+        seeds = round_seeds(cfg, r, done, int(alive.sum()))
+        if len(seeds) == 0:
+            break
+        done = seeds.stop
+        scores = np.where(np.arange(cfg.seeds)[None, :] < done, hv, np.nan)
+        alive = eliminate(scores, alive, cfg.race["alpha"], cfg.race["min_seeds"])
+        rounds.append(alive.copy())
+        r += 1
+        if alive.sum() <= 1 or done >= cfg.seeds:
+            break
+    return rounds
+
+
+@dataclass
+class Summary:
+    """Per setting (rows in the order of ``cfg.settings``) and the comparison of the finalists."""
+
+    rows: list[dict]
+    finalists: np.ndarray
+    comparison: stats.Comparison | None
+    rounds: list[np.ndarray]
+
+
+def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
+    """The statistics of every setting (see the module docstring)."""
+    hv, igdp = _matrix(cfg, cols, "HV"), _matrix(cfg, cols, "IGD+")
+    rounds = replay_race(cfg, hv) if cfg.race else []
+    finalists = rounds[-1] if rounds else np.isfinite(hv).any(axis=1)
+    idx = np.flatnonzero(finalists)
+    common = np.all(np.isfinite(hv[idx]), axis=0)
+    comparison = stats.compare_to_best(hv[idx][:, common], alpha) if idx.size and common.any() else None
+    ranks = np.full(len(cfg.settings), np.nan)
+    if idx.size > 1 and common.sum() > 0:
+        r = np.stack([rankdata(-hv[idx][:, s]) for s in np.flatnonzero(common)], axis=1)
+        ranks[idx] = r.mean(axis=1)
+    eliminated = np.full(len(cfg.settings), -1)
+    for r, alive in enumerate(rounds):
+        eliminated[(eliminated < 0) & ~alive] = r
     rows = []
-    seen: dict = {}
-    for i, k in enumerate(keys):
-        seen.setdefault(tuple("nan" if isinstance(x, float) and math.isnan(x) else x for x in k), []).append(i)
-    for k, idx in seen.items():
-        idx = np.asarray(idx)
-        hv = cols["HV"][idx]
-        q1, med, q3 = np.nanpercentile(hv, [25, 50, 75]) if np.isfinite(hv).any() else (np.nan,) * 3
-        row = {"pop": int(k[0]), "rho": cols["rho"][idx[0]], "alpha_max": cols["alpha_max"][idx[0]],
-               "runs": len(idx), "HV_median": med, "HV_iqr": q3 - q1, "_q": (q1, q3)}
-        for ind in ("IGD", "IGD+", "GD", "SP", "ONVG"):
-            v = cols[ind][idx].astype(float)
-            row[f"{ind}_median"] = float(np.nanmedian(v)) if np.isfinite(v).any() else np.nan
-        row["_idx"] = idx
+    for i, s in enumerate(cfg.settings):
+        v = hv[i][np.isfinite(hv[i])]
+        med, lo, hi = stats.median_ci(v, seed=i)
+        gmed, glo, ghi = stats.median_ci(igdp[i][np.isfinite(igdp[i])], seed=i)
+        row = {"setting": i, "label": s.label, "algorithm": s.algorithm, "pop": s.pop, "iterations": s.iters,
+               "params": " ".join(f"{k}={v:g}" for k, v in s.params), "runs": int(v.size), "HV_median": med,
+               "HV_ci_low": lo, "HV_ci_high": hi, "IGD+_median": gmed, "IGD+_ci_low": glo, "IGD+_ci_high": ghi}
+        sel = cols["setting"] == i
+        for ind in ("IGD", "GD", "SP", "ONVG"):
+            x = cols[ind][sel].astype(float)
+            row[f"{ind}_median"] = float(np.nanmedian(x)) if np.isfinite(x).any() else math.nan
+        row["mean_rank"] = ranks[i]
+        row.update(p_vs_best=math.nan, p_holm=math.nan, A12_best_over=math.nan, tied_with_best=False)
+        if comparison is not None and finalists[i]:
+            j = int(np.flatnonzero(idx == i)[0])
+            row.update(p_vs_best=comparison.p[j], p_holm=comparison.p_holm[j], A12_best_over=comparison.a12[j],
+                       tied_with_best=bool(comparison.tied[j]))
+        row["status"] = ("best" if comparison is not None and finalists[i] and idx[comparison.best] == i
+                         else "tied" if row["tied_with_best"] else
+                         f"eliminated in round {eliminated[i]}" if eliminated[i] >= 0 else "worse")
         rows.append(row)
-    rows.sort(key=lambda r: (-(r["HV_median"] if np.isfinite(r["HV_median"]) else -np.inf),
-                             r["pop"], np.nan_to_num(r["rho"]), np.nan_to_num(r["alpha_max"])))
-    return rows
+    return Summary(rows, finalists, comparison, rounds)
 
 
-def _label(row) -> str:
-    if math.isnan(row["rho"]):
-        return f"pop {row['pop']}"
-    return f"pop {row['pop']}, ρ={row['rho']:g}, α_max={row['alpha_max']:g}"
+def _order(rows: list[dict]) -> list[dict]:
+    rank = {"best": 0, "tied": 1, "worse": 2}
+    return sorted(rows, key=lambda r: (rank.get(r["status"], 3), -np.nan_to_num(r["HV_median"], nan=-np.inf),
+                                       r["setting"]))
+
+
+def _verdict(cfg: SweepConfig, summary: Summary) -> list[str]:
+    c = summary.comparison
+    if c is None:
+        return ["No setting has a complete set of scores: nothing can be compared."]
+    idx = np.flatnonzero(summary.finalists)
+    best = cfg.settings[idx[c.best]]
+    tied = [cfg.settings[idx[j]] for j in np.flatnonzero(c.tied) if j != c.best]
+    n_seeds = int(summary.rows[idx[c.best]]["runs"])
+    fp = "n/a" if math.isnan(c.friedman_p) else f"{c.friedman_p:.3g}"
+    lines = [f"Best by median HV: **{best.label}** (median {summary.rows[idx[c.best]]['HV_median']:.4f} over "
+             f"{n_seeds} seeds). Friedman test across the {len(idx)} compared settings: p = {fp}."]
+    if len(tied) == len(idx) - 1 and tied:
+        lines.append(f"No setting is significantly worse than it at {n_seeds} seeds (Wilcoxon signed-rank against "
+                     f"the best, Holm's correction, α = {c.alpha:g}): all {len(idx)} are tied, and this study "
+                     "cannot name a winner. Run more seeds, or race them (--race).")
+    elif tied:
+        lines.append(f"{len(tied)} other setting(s) are not significantly worse (Wilcoxon signed-rank against the "
+                     f"best, Holm's correction, α = {c.alpha:g}) and tie with it: "
+                     + "; ".join(s.label for s in tied) + ".")
+    else:
+        lines.append(f"Every other compared setting is significantly worse (Wilcoxon signed-rank against the best, "
+                     f"Holm's correction, α = {c.alpha:g}).")
+    return lines
+
+
+SUMMARY_COLUMNS = ("setting", "algorithm", "pop", "iterations", "params", "runs", "HV_median", "HV_ci_low",
+                   "HV_ci_high", "IGD+_median", "IGD+_ci_low", "IGD+_ci_high", "IGD_median", "GD_median", "SP_median",
+                   "ONVG_median", "mean_rank", "p_vs_best", "p_holm", "A12_best_over", "tied_with_best", "status")
+
+
+def _md_table(rows: list[dict], limit: int | None = None) -> list[str]:
+    head = ["setting", "runs", "HV median [95 % CI]", "IGD+ median [95 % CI]", "mean rank", "p (Holm)",
+            "A₁₂ of best", "verdict"]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows[:limit]:
+        num = lambda v, f: "–" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, f)  # noqa: E731
+        out.append("| " + " | ".join([
+            r["label"], str(r["runs"]),
+            f"{num(r['HV_median'], '.4f')} [{num(r['HV_ci_low'], '.4f')}, {num(r['HV_ci_high'], '.4f')}]",
+            f"{num(r['IGD+_median'], '.4f')} [{num(r['IGD+_ci_low'], '.4f')}, {num(r['IGD+_ci_high'], '.4f')}]",
+            num(r["mean_rank"], ".2f"), num(r["p_holm"], ".3g"), num(r["A12_best_over"], ".2f"), r["status"]]) + " |")
+    return out
+
+
+def _figures(out: Path, cfg: SweepConfig, cols, fronts, history, summary: Summary, ref) -> list[Path]:
+    written: list[Path] = []
+    rows = _order(summary.rows)
+    ranked = [r["setting"] for r in rows if r["runs"]]
+    # anytime hypervolume of the leading settings and the default
+    default = next((i for i, s in enumerate(cfg.settings) if s.is_default() and summary.rows[i]["runs"]), None)
+    shown = list(dict.fromkeys(ranked[:TOP_VIEWS] + ([default] if default is not None else [])))
+    curves = {}
+    for i in shown:
+        sel = np.flatnonzero(cols["setting"] == i)
+        H = np.stack([history[k] for k in sel])
+        s = cfg.settings[i]
+        curves[s.label + (" (default)" if i == default else "")] = (s.pop * (np.arange(H.shape[1]) + 2), H)
+    written.append(plots.plot_anytime(curves, out / "anytime_hv.png", title="anytime hypervolume, median and IQR"))
+    # median attainment surfaces of the best and the default (or the worst) setting
+    best = ranked[0]
+    other = default if default is not None and default != best else (ranked[-1] if len(ranked) > 1 else None)
+    if other is not None:
+        sets = {}
+        for i in (best, other):
+            runs = [fronts[k] for k in np.flatnonzero(cols["setting"] == i) if len(fronts[k])]
+            if runs:
+                sets[i] = np.concatenate([np.column_stack([f, np.full(len(f), n + 1)]) for n, f in enumerate(runs)])
+        if len(sets) == 2:
+            a, b = sets[best], sets[other]
+            surf = {i: moocore.eaf(sets[i][:, :2], sets[i][:, 2], percentiles=[50])[:, :2] for i in (best, other)}
+            diff = moocore.eafdiff(a, b, rectangles=True)
+            label = lambda i: cfg.settings[i].label + (" (default)" if i == default else "")  # noqa: E731
+            written.append(plots.plot_eaf(surf[best], surf[other], diff, label(best), label(other),
+                                          int(a[:, 2].max()), int(b[:, 2].max()), ref["front"], out / "eaf.png"))
+    # heat maps over two hyper-parameters of one algorithm, population and iteration count
+    groups: dict[tuple, list[int]] = {}
+    for i, s in enumerate(cfg.settings):
+        groups.setdefault((s.algorithm, s.pop, s.iters, tuple(k for k, _ in s.params)), []).append(i)
+    for (algorithm, pop, iters, names), members in groups.items():
+        if len(names) != 2 or len(members) < 2:
+            continue
+        xs = sorted({cfg.settings[i].value(names[1]) for i in members})
+        ys = sorted({cfg.settings[i].value(names[0]) for i in members})
+        if len(xs) * len(ys) != len(members):  # sampled, not a grid
+            continue
+        M = np.full((len(ys), len(xs)), np.nan)
+        for i in members:
+            s = cfg.settings[i]
+            M[ys.index(s.value(names[0])), xs.index(s.value(names[1]))] = summary.rows[i]["HV_median"]
+        sym = [symbol(algorithm, n) for n in names]
+        written.append(plots.plot_heatmap(M, ys, xs, out / f"heatmap_hv_{algorithm}_pop{pop}_it{iters}.png",
+                                          xlabel=sym[1], ylabel=sym[0],
+                                          title=f"{algorithm}: median HV, pop {pop}, {iters} iterations"))
+    # HV against population size, one line per (algorithm, iterations, hyper-parameters)
+    if len({s.pop for s in cfg.settings}) > 1:
+        lines: dict[str, list[int]] = {}
+        for i, s in enumerate(cfg.settings):
+            if summary.rows[i]["runs"]:
+                name = ", ".join([s.algorithm] + [f"{k}={v:g}" for k, v in s.params])
+                lines.setdefault(name, []).append(i)
+        data = {}
+        for name, members in lines.items():
+            members.sort(key=lambda i: cfg.settings[i].pop)
+            hv = [cols["HV"][cols["setting"] == i] for i in members]
+            data[name] = (np.array([cfg.settings[i].pop for i in members], float),
+                          np.array([np.median(h) for h in hv]),
+                          np.array([np.percentile(h, [25, 75]) for h in hv]).reshape(-1, 2))
+        written.append(plots.plot_median_iqr(data, out / "hv_vs_pop.png", xlabel="population size",
+                                             ylabel="hypervolume (median, bar = IQR)",
+                                             title="hypervolume against population size"))
+    worst = ranked[-1]
+    groups_f = {f"{what}: {cfg.settings[i].label} (HV {summary.rows[i]['HV_median']:.3f})":
+                [fronts[k] for k in np.flatnonzero(cols["setting"] == i)]
+                for i, what in ((best, "best"), (worst, "worst"))[: 1 if best == worst else 2]}
+    written.append(plots.plot_front_groups(groups_f, ref["front"], out / "fronts_best_worst.png",
+                                           reference_label="reference front (fixed at sweep start)",
+                                           title="fronts of every seed, best and worst setting by median HV"))
+    return written
 
 
 def report(out: Path, *, top: int = 10, log: Callable[[str], None] = print) -> list[Path]:
-    """Tables and figures of a finished sweep folder (every file atomically)."""
+    """Tables, statistics, ``report.md`` and the figures of a finished sweep folder (every
+    file atomically); prints the verdict and the leading rows."""
     out = Path(out)
-    cols, fronts = load_table(out)
+    cfg = load_config(out)
+    cols, fronts, history = load_table(out)
     ref = load_npz(out / "reference.npz")
     written = []
-    lines = [",".join(COLUMNS)] + [",".join(_fmt(cols[c][i]) for c in COLUMNS) for i in range(len(cols["run_id"]))]
+    params = [" ".join(f"{k}={v:g}" for k, v in cfg.settings[i].params) for i in cols["setting"]]
+    table = {**cols, "pop": np.array([cfg.settings[i].pop for i in cols["setting"]]),
+             "iterations": np.array([cfg.settings[i].iters for i in cols["setting"]]), "params": np.array(params)}
+    lines = [",".join(COLUMNS)] + [",".join(_fmt(table[c][i]) for c in COLUMNS) for i in range(len(cols["setting"]))]
     atomic_write_text(out / "runs.csv", "\n".join(lines) + "\n")
-    written.append(out / "runs.csv")
     offsets = np.cumsum([0] + [len(f) for f in fronts])
     atomic_savez(out / "fronts.npz", {"F": np.concatenate(fronts + [np.zeros((0, 2))]), "offsets": offsets,
-                                       **{k: cols[k] for k in ("run_id", "pop", "rho", "alpha_max", "seed")}})
-    written.append(out / "fronts.npz")
+                                       "setting": cols["setting"], "seed": cols["seed"]})
+    written += [out / "runs.csv", out / "fronts.npz"]
 
-    rows = _settings_summary(cols)
-    scols = [k for k in rows[0] if not k.startswith("_")]
-    csv = [",".join(scols)] + [",".join(_fmt(r[c]) for c in scols) for r in rows]
+    summary = summarise(cfg, cols)
+    rows = _order(summary.rows)
+    csv = [",".join(SUMMARY_COLUMNS)] + [",".join(_fmt(r[c]) for c in SUMMARY_COLUMNS) for r in rows]
     atomic_write_text(out / "summary.csv", "\n".join(csv) + "\n")
-    md = ["| " + " | ".join(scols) + " |", "|" + "---|" * len(scols)]
-    md += ["| " + " | ".join(f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in scols) + " |"
-           for r in rows]
-    note = (f"\nIndicators on objectives normalised by the fixed reference front of reference.npz "
-            f"({str(ref.get('source', 'pilot'))}, {len(ref['front'])} points; "
-            f"HV reference point {float(ref['hv_ref'])}).\n")
-    atomic_write_text(out / "summary.md", "\n".join(md) + "\n" + note)
+    verdict = _verdict(cfg, summary)
+    source = str(ref.get("source", "pilot"))
+    note = (f"Indicators on objectives normalised by the fixed reference front of reference.npz ({source}, "
+            f"{len(ref['front'])} points; HV reference point {float(ref['hv_ref'])}). Intervals: percentile "
+            "bootstrap of the median, 95 %.")
+    atomic_write_text(out / "summary.md", "\n".join(_md_table(rows)) + "\n\n" + note + "\n")
     written += [out / "summary.csv", out / "summary.md"]
+    figures = _figures(out, cfg, cols, fronts, history, summary, ref)
+    written += figures
 
-    algo = str(cols["algorithm"][0])
-    log(f"\n{algo}: {len(cols['run_id'])} runs, {len(rows)} settings; best by median HV "
-        f"(reference fixed at sweep start: {str(ref.get('source', 'pilot'))}, {len(ref['front'])} points)")
-    log(f"{'rank':>4}  {'setting':<34} {'HV median':>10} {'IQR':>8} {'IGD':>8} {'GD':>9} {'SP':>8} {'ONVG':>5}")
-    for k, r in enumerate(rows[:top]):
-        log(f"{k + 1:>4}  {_label(r):<34} {r['HV_median']:>10.4f} {r['HV_iqr']:>8.4f} {r['IGD_median']:>8.4f} "
-            f"{r['GD_median']:>9.5f} {r['SP_median']:>8.5f} {r['ONVG_median']:>5.0f}")
+    md = ["# Sweep report", "",
+          f"{len(cfg.settings)} settings of {', '.join(cfg.algorithms)} on the {cfg.preset} preset, "
+          f"{len(cols['setting'])} runs"
+          + (f" (race over at most {cfg.seeds} seeds; the full grid would be {cfg.n_runs()} runs, "
+             f"{100 * len(cols['setting']) / cfg.n_runs():.0f} % of it)" if cfg.race else f", {cfg.seeds} seeds each")
+          + f". Reference front: {source}, {len(ref['front'])} points, fixed before the first run.", "",
+          "## Verdict", "", *verdict, "", "## Settings", "", *_md_table(rows), "", note, ""]
+    if summary.rounds:
+        md += ["## Race", "", "| round | seeds so far | settings left |", "|---|---:|---:|"]
+        done = 0
+        alive_before = len(cfg.settings)
+        for r, alive in enumerate(summary.rounds):
+            seeds = round_seeds(cfg, r, done, alive_before)
+            done = seeds.stop
+            md.append(f"| {r} | {done} | {int(alive.sum())} |")
+            alive_before = int(alive.sum())
+        md.append("")
+    md += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figures] + [""]
+    atomic_write_text(out / "report.md", "\n".join(md))
+    written.append(out / "report.md")
+
+    log("")
+    for line in verdict:
+        log(line.replace("**", ""))
+    log(f"{'':>2}  {'setting':<46} {'runs':>4} {'HV median [95% CI]':>26} {'p (Holm)':>9} {'A12':>5}  verdict")
+    for r in rows[:top]:
+        p = "" if math.isnan(r["p_holm"]) else f"{r['p_holm']:.3g}"
+        a = "" if math.isnan(r["A12_best_over"]) else f"{r['A12_best_over']:.2f}"
+        ci = f"{r['HV_median']:.4f} [{r['HV_ci_low']:.4f}, {r['HV_ci_high']:.4f}]"
+        log(f"{'':>2}  {r['label'][:46]:<46} {r['runs']:>4} {ci:>26} {p:>9} {a:>5}  {r['status']}")
     if len(rows) > top:
-        log(f"      ... {len(rows) - top} more in {out / 'summary.csv'}")
-
-    # heat maps of median HV over rho x alpha_max, per population size (IMOCS)
-    if not np.isnan(cols["rho"]).all():
-        for pop in sorted({r["pop"] for r in rows}):
-            sub = [r for r in rows if r["pop"] == pop]
-            rhos = sorted({r["rho"] for r in sub})
-            alphas = sorted({r["alpha_max"] for r in sub})
-            M = np.full((len(rhos), len(alphas)), np.nan)
-            for r in sub:
-                M[rhos.index(r["rho"]), alphas.index(r["alpha_max"])] = r["HV_median"]
-            written.append(plots.plot_heatmap(M, rhos, alphas, out / f"heatmap_hv_pop{pop}.png",
-                                              xlabel="α_max", ylabel="ρ", title=f"{algo}: median HV, pop {pop}"))
-    # HV against population size, one line per (rho, alpha_max)
-    groups: dict = {}
-    for r in rows:
-        groups.setdefault((_fmt(r["rho"]), _fmt(r["alpha_max"])), []).append(r)
-    lines = {}
-    for (rho, alpha), rs in sorted(groups.items()):
-        rs = sorted(rs, key=lambda r: r["pop"])
-        label = algo if rho == "nan" else f"ρ={float(rho):g}, α_max={float(alpha):g}"
-        lines[label] = (np.array([r["pop"] for r in rs], float), np.array([r["HV_median"] for r in rs]),
-                        np.array([r["_q"] for r in rs]).reshape(-1, 2))
-    written.append(plots.plot_median_iqr(lines, out / "hv_vs_pop.png", xlabel="population size",
-                                         ylabel="hypervolume (median, bar = IQR)",
-                                         title=f"{algo}: HV against population size"))
-    # fronts of the best and the worst setting
-    groups = {f"{what}: {_label(r)} (HV {r['HV_median']:.3f})": [fronts[i] for i in r["_idx"]]
-              for r, what in ((rows[0], "best"), (rows[-1], "worst"))[: 1 if len(rows) == 1 else 2]}
-    written.append(plots.plot_front_groups(groups, ref["front"], out / "fronts_best_worst.png",
-                                           reference_label="reference front (fixed at sweep start)",
-                                           title=f"{algo}: fronts of every seed, best and worst setting by median HV"))
+        log(f"    ... {len(rows) - top} more in {out / 'summary.csv'}")
     log(f"wrote {', '.join(p.name for p in written)} to {out}")
     return written

@@ -16,20 +16,34 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
-from .. import config
 from ..io import atomic_savez, atomic_write_text
-from ..metrics import nondominated_points
 from ..version import __version__
-from .config import PILOT_SEED0, ConfigError, SweepConfig, pilot_spec, plan_chunks
+from .config import ChunkSpec, ConfigError, SweepConfig, plan_round, round_seeds
+from .design import Setting
 from .execute import DaskBackend, LocalBackend, run_chunk
 from .files import load_npz
+from .race import eliminate
+from .reference import fixed_reference
 
-__all__ = ["prepare_folder", "remove_created", "run_sweep"]
+__all__ = ["prepare_folder", "remove_created", "run_sweep", "scores_table"]
 
 
 def _diff(a: dict, b: dict) -> list[str]:
     keys = sorted(set(a) | set(b))
-    return [f"{k}: folder has {a.get(k)!r}, command gives {b.get(k)!r}" for k in keys if a.get(k) != b.get(k)]
+    out = []
+    for k in keys:
+        x, y = a.get(k), b.get(k)
+        if x == y:
+            continue
+        if k == "settings" and isinstance(x, list) and isinstance(y, list):
+            label = lambda d: Setting.from_identity(d).label  # noqa: E731
+            only_x = [label(d) for d in x if d not in y][:2]
+            only_y = [label(d) for d in y if d not in x][:2]
+            out.append(f"settings: folder has {len(x)} (e.g. {only_x or 'the same ones in another order'}), "
+                       f"command gives {len(y)} (e.g. {only_y or 'the same ones in another order'})")
+        else:
+            out.append(f"{k}: folder has {x!r}, command gives {y!r}")
+    return out
 
 
 def prepare_folder(out: Path, cfg: SweepConfig) -> list[Path]:
@@ -53,7 +67,6 @@ def prepare_folder(out: Path, cfg: SweepConfig) -> list[Path]:
                 if stored != want:
                     raise ConfigError(f"--out {out} holds a different sweep configuration ("
                                       + "; ".join(_diff(stored, want)) + "); use another folder or the same options")
-                _check_chunks(out, cfg)
             elif any(not p.name.startswith(".") for p in out.iterdir()):
                 raise ConfigError(f"--out {out} is not empty and holds no sweep (no config.json); "
                                   "use a new or empty folder")
@@ -87,24 +100,6 @@ def remove_created(created: list[Path]) -> None:
         shutil.rmtree(created[0], ignore_errors=True)
 
 
-def _check_chunks(out: Path, cfg: SweepConfig) -> None:
-    plan = {c.name: c for c in plan_chunks(cfg)}
-    folder = out / "chunks"
-    if not folder.is_dir():
-        return
-    for path in sorted(folder.glob("chunk-*.npz")):
-        spec = plan.get(path.name)
-        if spec is None:
-            raise ConfigError(f"--out {out}: {path.name} is not part of this sweep's plan; use another folder")
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                ids = tuple(int(i) for i in z["run_id"])
-        except Exception:  # unreadable: recomputed later
-            continue
-        if ids != spec.run_ids:
-            raise ConfigError(f"--out {out}: {path.name} holds other runs than this sweep's plan; use another folder")
-
-
 def _write_config(out: Path, cfg: SweepConfig) -> None:
     path = out / "config.json"
     if path.exists():
@@ -115,39 +110,37 @@ def _write_config(out: Path, cfg: SweepConfig) -> None:
     atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
 
 
-def _reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backend, log) -> dict:
-    path = out / "reference.npz"
-    if path.exists():
-        ref = load_npz(path)
-        log(f"reference: {len(ref['front'])} points from {path} (fixed at sweep start)")
-        return ref
-    t0 = time.perf_counter()
-    if front is None:
-        spec = pilot_spec(cfg)
-        log(f"reference: pilot of {spec.n_real} {cfg.algorithm} runs (pop {spec.pop}, {cfg.iters} iterations, "
-            f"{'ρ=0.4, α_max=0.1, ' if cfg.has_grid else ''}seeds {PILOT_SEED0}..) ...")
-        _, res = next(backend.map(run_chunk, [spec]))
-        front = nondominated_points(res["front_F"])
-        if len(front) == 0:
-            raise RuntimeError("the reference pilot found no feasible trajectory; raise --iters or "
-                               "pass --reference-front")
-        source = "pilot"
-    else:
-        source = "file"
-    ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": np.float64(config.HV_REFERENCE),
-           "source": np.asarray(source)}
-    atomic_savez(path, ref)
-    log(f"reference: {len(front)} points ({source}) in {time.perf_counter() - t0:.1f} s"
-        f"{' (compile included)' if source == 'pilot' else ''}; ideal {np.round(ref['ideal'], 4).tolist()}, "
-        f"nadir {np.round(ref['nadir'], 4).tolist()}")
-    return ref
+def scores_table(out: Path, cfg: SweepConfig, column: str = "HV") -> np.ndarray:
+    """(settings, seeds) of one indicator over every chunk file in ``out/chunks`` (NaN where
+    a run has not happened)."""
+    table = np.full((len(cfg.settings), cfg.seeds), np.nan)
+    for path in sorted((out / "chunks").glob("round-*-chunk-*.npz")):
+        z = load_npz(path)
+        table[z["setting"], z["seed"]] = z[column]
+    return table
+
+
+def _check(path: Path, spec: ChunkSpec) -> bool:
+    """Whether a chunk file is complete and holds the runs of ``spec`` (ConfigError if it
+    holds other runs: the folder belongs to another plan)."""
+    if not path.exists():
+        return False
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            settings, seeds, _ = z["setting"], z["seed"], z["front_offsets"]
+    except Exception:  # truncated or damaged: recomputed
+        return False
+    if tuple(settings.tolist()) != spec.settings[:spec.n_real] or tuple(seeds.tolist()) != spec.seeds[:spec.n_real]:
+        raise ConfigError(f"--out {path.parent.parent}: {path.name} holds other runs than this sweep's plan; "
+                          "use another folder")
+    return True
 
 
 def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, backend: str = "local",
               scheduler: str | None = None, workers: int = 2, dask_processes: bool = False,
               progress: bool = True, log: Callable[[str], None] = print) -> int:
-    """Run every missing chunk of the sweep in ``out`` (after :func:`prepare_folder`).
-    Returns the number of chunks computed now."""
+    """Run every missing chunk of the sweep in ``out`` (after :func:`prepare_folder`), round
+    after round (one round without racing). Returns the number of chunks computed now."""
     out = Path(out)
     chunks_dir = out / "chunks"
     if backend == "dask":
@@ -159,59 +152,61 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
     else:
         be = LocalBackend()
     pause = float(os.environ.get("DOCKJAX_SWEEP_PAUSE", "0") or 0)
+    computed = 0
     try:
         _write_config(out, cfg)
         chunks_dir.mkdir(exist_ok=True)
-        for stale in chunks_dir.glob(".chunk-*.tmp"):  # left by a kill during a write
+        for stale in chunks_dir.glob(".*.tmp"):  # left by a kill during a write
             stale.unlink(missing_ok=True)
-        plan = plan_chunks(cfg)
-        done = {c.index for c in plan if _readable(chunks_dir / c.name)}
-        todo = [c for c in plan if c.index not in done]
-        n_total = sum(c.n_real for c in plan)
-        n_done = sum(c.n_real for c in plan if c.index in done)
-        log(f"sweep: {plan[0].label if plan else cfg.algorithm}, {cfg.n_runs()} runs "
-            f"({len(cfg.settings())} settings × {cfg.seeds} seeds, "
-            f"{cfg.iters} iterations) in {len(plan)} chunks of {len(plan[0].seeds)}; "
-            + (f"resuming: {len(done)} of {len(plan)} chunks already done" if done else "starting"))
-        ref = _reference(out, cfg, front, be, log)
-        if not todo:
-            return 0
+        kind = f"race over {cfg.seeds} seeds (min {cfg.race['min_seeds']})" if cfg.race else f"{cfg.seeds} seeds"
+        log(f"sweep: {', '.join(cfg.algorithms)}; {len(cfg.settings)} settings, {kind}, {cfg.n_runs()} runs at most")
+        ref = fixed_reference(out, cfg, front, be, log)
         reference = {k: ref[k] for k in ("front", "ideal", "nadir", "hv_ref")}
-        bar = tqdm(total=n_total, initial=n_done, unit="run", disable=not progress, file=sys.stderr,
+        alive = np.ones(len(cfg.settings), bool)
+        seeds_done, r = 0, 0
+        bar = tqdm(total=None if cfg.race else cfg.n_runs(), unit="run", disable=not progress, file=sys.stderr,
                    dynamic_ncols=True, smoothing=0.1)
-        times: dict[int, list[float]] = {}
+        times: dict[tuple, list[float]] = {}
         try:
-            for spec, res in be.map(run_chunk, todo, reference):
-                atomic_savez(chunks_dir / spec.name, res)
-                seconds = float(res["wall_s"][0]) * len(spec.seeds)
-                first = spec.pop not in times
-                times.setdefault(spec.pop, []).append(seconds)
-                bar.update(spec.n_real)
-                if first:
-                    bar.set_postfix_str(f"first chunk of pop {spec.pop} (compile + run): {seconds:.1f} s")
-                else:
-                    t = times[spec.pop]
-                    bar.set_postfix_str(f"pop {spec.pop}: compile ≈ {max(t[0] - np.median(t[1:]), 0):.1f} s, "
-                                        f"{np.median(t[1:]):.2f} s/chunk")
-                if pause:
-                    time.sleep(pause)
+            while True:
+                seeds = round_seeds(cfg, r, seeds_done, int(alive.sum()))
+                if len(seeds) == 0:
+                    break
+                plan = plan_round(cfg, r, alive, seeds)
+                done = [c for c in plan if _check(chunks_dir / c.name, c)]
+                todo = [c for c in plan if c not in done]
+                if done:
+                    log(f"round {r}: resuming, {len(done)} of {len(plan)} chunks already done")
+                bar.update(sum(c.n_real for c in done))
+                for spec, res in be.map(run_chunk, todo, reference):
+                    atomic_savez(chunks_dir / spec.name, res)
+                    computed += 1
+                    seconds = float(res["wall_s"][0]) * len(spec.seeds)
+                    key = (spec.algorithm, spec.pop, spec.iters)
+                    times.setdefault(key, []).append(seconds)
+                    bar.update(spec.n_real)
+                    t = times[key]
+                    bar.set_postfix_str(f"{spec.algorithm} pop {spec.pop}: " + (
+                        f"first chunk (compile + run) {seconds:.1f} s" if len(t) == 1 else
+                        f"{np.median(t[1:]):.2f} s/chunk"))
+                    if pause:
+                        time.sleep(pause)
+                seeds_done = seeds.stop
+                if cfg.race is None:
+                    break
+                before = int(alive.sum())
+                alive = eliminate(scores_table(out, cfg), alive, cfg.race["alpha"], cfg.race["min_seeds"])
+                log(f"round {r}: seeds {seeds.start}..{seeds.stop - 1}, {before} settings raced, "
+                    f"{int(alive.sum())} left")
+                r += 1
+                if alive.sum() <= 1 or seeds_done >= cfg.seeds:
+                    break
         finally:
             bar.close()
-        for pop, t in times.items():
+        for (algorithm, pop, iters), t in times.items():
             rest = np.median(t[1:]) if len(t) > 1 else 0.0
             later = f", later chunks {rest:.2f} s each (compile ≈ {max(t[0] - rest, 0):.1f} s)" if len(t) > 1 else ""
-            log(f"pop {pop}: first chunk {t[0]:.1f} s{later}")
-        return len(todo)
+            log(f"{algorithm} pop {pop}, {iters} iterations: first chunk {t[0]:.1f} s{later}")
+        return computed
     finally:
         be.close()
-
-
-def _readable(path: Path) -> bool:
-    if not path.exists():
-        return False
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            z["run_id"], z["front_offsets"]
-        return True
-    except Exception:
-        return False

@@ -1,0 +1,238 @@
+"""What a study runs: its settings (an algorithm, a population, an iteration count and
+values for any of the algorithm's hyper-parameters), built from a design.
+
+A design names one or more algorithms and, per algorithm, values for any field of its
+``Params``: a list of values (a grid), or a range ``lo:hi`` sampled at random or by a Sobol
+sequence (``samples`` points of the box of all ranges, from an explicit seed); grids and
+samples combine as a cross product. Population sizes and iteration counts cross with every
+setting, or a *budget* holds ``population × iterations`` at a fixed number of evaluations
+(the iteration count follows the population). Several algorithms in one study are run on
+the same seeds, a head-to-head.
+
+Every name and value is checked against the algorithm's ``Params`` before any work:
+unknown fields and values outside a field's range are refused, naming the field and its
+allowed range (:func:`dockjax.algorithms.base.validate_params`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+from scipy.stats import qmc
+
+from .. import algorithms
+from ..algorithms.base import validate_params
+
+__all__ = ["Setting", "ParamSpec", "parse_param", "build_settings", "FIXED_FIELDS", "symbol", "params_of", "static_key",
+           "traced_params", "defaults_of"]
+
+FIXED_FIELDS = ("pop_size", "max_iter")
+"""``Params`` fields a study sets itself (population and iteration count)."""
+
+
+@dataclass(frozen=True, order=True)
+class Setting:
+    """One configuration of an optimiser. ``params``: sorted ``(field, value)`` pairs of the
+    hyper-parameters that differ from the algorithm's defaults or were named by the study."""
+
+    algorithm: str
+    pop: int
+    iters: int
+    params: tuple[tuple[str, float], ...] = ()
+
+    def value(self, name: str, default=math.nan):
+        return dict(self.params).get(name, default)
+
+    @property
+    def label(self) -> str:
+        bits = [self.algorithm, f"pop {self.pop}", f"{self.iters} it"]
+        bits += [f"{symbol(self.algorithm, k)}={v:g}" for k, v in self.params]
+        return ", ".join(bits)
+
+    def identity(self) -> dict:
+        return {"algorithm": self.algorithm, "pop": self.pop, "iters": self.iters,
+                "params": {k: v for k, v in self.params}}
+
+    @classmethod
+    def from_identity(cls, d: dict) -> "Setting":
+        return cls(str(d["algorithm"]), int(d["pop"]), int(d["iters"]),
+                   tuple(sorted((str(k), float(v)) for k, v in d["params"].items())))
+
+    def is_default(self) -> bool:
+        """Every named hyper-parameter at the algorithm's default."""
+        defaults = algorithms.get(self.algorithm).Params()
+        return all(getattr(defaults, k) == v for k, v in self.params)
+
+
+def symbol(algorithm: str, field: str) -> str:
+    """The paper's symbol of a ``Params`` field (its name where it has none)."""
+    meta = algorithms.get(algorithm).Params.__dataclass_fields__[field].metadata
+    return meta.get("symbol", field)
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Values of one hyper-parameter: ``values`` (a grid) or ``lo``/``hi`` (a range to
+    sample). ``algorithm`` None: every algorithm of the study that has the field."""
+
+    field: str
+    algorithm: str | None = None
+    values: tuple[float, ...] = ()
+    lo: float | None = None
+    hi: float | None = None
+
+    @property
+    def is_range(self) -> bool:
+        return self.lo is not None
+
+
+def parse_param(text: str) -> ParamSpec:
+    """``[algorithm.]field=v1,v2,…`` (a grid) or ``[algorithm.]field=lo:hi`` (a range).
+    Raises ValueError naming the malformed part."""
+    if "=" not in text:
+        raise ValueError(f"--param {text!r}: expected NAME=VALUES, e.g. rho=0.2,0.4 or imocs.alpha_max=0.05:0.3")
+    name, spec = (s.strip() for s in text.split("=", 1))
+    algorithm, _, field = name.rpartition(".")
+    if not field:
+        raise ValueError(f"--param {text!r}: no field name before '='")
+    try:
+        if ":" in spec:
+            lo, hi = (float(v) for v in spec.split(":"))
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError
+            return ParamSpec(field, algorithm or None, lo=lo, hi=hi)
+        values = tuple(float(v) for v in spec.split(",") if v.strip())
+        if not values or not all(math.isfinite(v) for v in values):
+            raise ValueError
+        return ParamSpec(field, algorithm or None, values=values)
+    except ValueError:
+        raise ValueError(f"--param {text!r}: VALUES must be finite numbers separated by commas, or lo:hi with "
+                         "lo < hi") from None
+
+
+def _check_field(algorithm: str, field: str) -> None:
+    fields = algorithms.get(algorithm).Params.__dataclass_fields__
+    allowed = sorted(set(fields) - set(FIXED_FIELDS))
+    if field in FIXED_FIELDS:
+        raise ValueError(f"--param {field}: the population and iteration count are set by --pop, --iters and "
+                         f"--budget")
+    if field not in fields:
+        raise ValueError(f"--param {field}: unknown hyper-parameter for {algorithm}; allowed: {', '.join(allowed)}")
+
+
+def _samples(ranges: list[ParamSpec], n: int, design: str, seed: int) -> np.ndarray:
+    """(n, len(ranges)) points of the box of the ranges: uniform at random or a scrambled
+    Sobol sequence, from ``seed``."""
+    d = len(ranges)
+    if design == "sobol":
+        u = qmc.Sobol(d, scramble=True, seed=np.random.default_rng(seed)).random(n)
+    else:
+        u = np.random.default_rng(seed).random((n, d))
+    lo = np.array([r.lo for r in ranges])
+    hi = np.array([r.hi for r in ranges])
+    return lo + u * (hi - lo)
+
+
+def build_settings(algorithm_names: Sequence[str], specs: Iterable[ParamSpec], pops: Sequence[int],
+                   iters: Sequence[int] = (), budget: int | None = None, design: str = "grid", samples: int = 0,
+                   seed: int = 0) -> list[Setting]:
+    """Every setting of the study, in a deterministic order (by algorithm as given, then
+    population, iterations and parameter values). Raises ValueError, naming the field and
+    its allowed range, for an unknown field or an out-of-range value."""
+    specs = list(specs)
+    names = [algorithms.get(a).name for a in algorithm_names]
+    if not names:
+        raise ValueError("--algorithm: name at least one algorithm")
+    if len(set(names)) != len(names):
+        raise ValueError(f"--algorithm: {names} names an algorithm twice")
+    for s in specs:
+        if s.field in FIXED_FIELDS:
+            _check_field(names[0], s.field)
+        if s.algorithm is not None:
+            if algorithms.get(s.algorithm).name not in names:
+                raise ValueError(f"--param {s.algorithm}.{s.field}: {s.algorithm} is not among --algorithm {names}")
+            _check_field(s.algorithm, s.field)
+        elif not any(s.field in algorithms.get(a).Params.__dataclass_fields__ for a in names):
+            _check_field(names[0], s.field)
+    if budget is not None:
+        shapes = [(p, budget // p) for p in pops]
+        bad = [p for p, it in shapes if it < 1]
+        if bad:
+            raise ValueError(f"--budget {budget} gives no iteration at --pop {bad}")
+    else:
+        shapes = [(p, it) for p in pops for it in iters]
+    out: list[Setting] = []
+    for name in names:
+        mine = {}
+        for s in specs:  # an algorithm's own spec wins over a shared one
+            if s.field in algorithms.get(name).Params.__dataclass_fields__ and (s.algorithm in (None, name)):
+                if s.algorithm == name or s.field not in mine:
+                    mine[s.field] = s
+        grids = [s for s in mine.values() if not s.is_range]
+        ranges = [s for s in mine.values() if s.is_range]
+        if ranges and design == "grid":
+            raise ValueError(f"--param {ranges[0].field}={ranges[0].lo:g}:{ranges[0].hi:g} is a range: sample it "
+                             "with --design random or sobol and --samples N, or give a list of values")
+        if ranges and samples < 1:
+            raise ValueError("--samples must be >= 1 to sample the ranges of --param")
+        sampled = _samples(ranges, samples, design, seed) if ranges else np.zeros((1, 0))
+        grid_values = list(itertools.product(*[sorted(set(s.values)) for s in grids]))
+        combos = set()
+        for g in grid_values:
+            for row in sampled:
+                combos.add(tuple(sorted([*zip((s.field for s in grids), g),
+                                         *zip((s.field for s in ranges), map(float, row))])))
+        for pop, it in shapes:
+            for params in sorted(combos):
+                setting = Setting(name, int(pop), int(it), params)
+                _validate(setting)
+                out.append(setting)
+    return out
+
+
+def _validate(setting: Setting) -> None:
+    algo = algorithms.get(setting.algorithm)
+    kwargs = dict(setting.params)
+    fields = algo.Params.__dataclass_fields__
+    for k, v in kwargs.items():  # integer fields take integers
+        if fields[k].metadata.get("integer") and float(v).is_integer():
+            kwargs[k] = int(v)
+    try:
+        algorithms.make_params(algo, setting.pop, setting.iters, **kwargs)
+    except ValueError as exc:
+        raise ValueError(f"{setting.algorithm}: {exc}") from None
+
+
+def params_of(setting: Setting):
+    """The ``Params`` of a setting (integers where the field is an integer)."""
+    algo = algorithms.get(setting.algorithm)
+    fields = algo.Params.__dataclass_fields__
+    kwargs = {k: (int(v) if fields[k].metadata.get("integer") else v) for k, v in setting.params}
+    params = algorithms.make_params(algo, setting.pop, setting.iters, **kwargs)
+    validate_params(params)
+    return params
+
+
+def static_key(setting: Setting) -> tuple:
+    """What fixes a compiled program: the algorithm, population, iterations and the static
+    hyper-parameters (e.g. MOPSO's grid divisions). Settings with the same key share chunks."""
+    fields = algorithms.get(setting.algorithm).Params.__dataclass_fields__
+    statics = tuple((k, v) for k, v in setting.params if fields[k].metadata.get("static"))
+    return (setting.algorithm, setting.pop, setting.iters, statics)
+
+
+def traced_params(setting: Setting) -> dict[str, float]:
+    """The hyper-parameters a batch of runs varies per run (``optimize(batch_params=)``)."""
+    fields = algorithms.get(setting.algorithm).Params.__dataclass_fields__
+    return {k: v for k, v in setting.params if not fields[k].metadata.get("static")}
+
+
+def defaults_of(algorithm: str) -> dict[str, float]:
+    """The algorithm's default hyper-parameters (the fields a study may vary)."""
+    p = algorithms.get(algorithm).Params()
+    return {f.name: getattr(p, f.name) for f in dataclasses.fields(p) if f.name not in FIXED_FIELDS}

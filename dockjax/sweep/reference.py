@@ -1,0 +1,66 @@
+"""The reference front of a sweep, fixed before its first run and stored in its folder
+(conventions §8): the best-known front of the problem by default (an ε-constraint sweep
+with gradient refinement that sees no optimiser's front, computed once per problem
+definition and cached on disk by its identity), a pilot of the study's first algorithm, or a
+user's file. ``reference.npz`` records the front, its ideal and nadir (the normalisation of
+every indicator), the hypervolume reference point and the kind."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .. import config
+from ..io import atomic_savez
+from ..metrics import nondominated_points
+from ..problem import make_problem
+from ..refine import best_known_cached
+from .config import PILOT_SEED0, SweepConfig, pilot_spec
+from .execute import run_chunk
+from .files import load_npz
+
+__all__ = ["fronts_cache", "fixed_reference"]
+
+
+def fronts_cache() -> Path:
+    """Where best-known fronts are cached: ``$DOCKJAX_FRONTS`` or ``~/.cache/dockjax/fronts``."""
+    return Path(os.environ.get("DOCKJAX_FRONTS", Path.home() / ".cache" / "dockjax" / "fronts"))
+
+
+def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backend,
+                    log: Callable[[str], None]) -> dict:
+    """``out/reference.npz``, made now if it does not exist yet (then reused unchanged)."""
+    path = out / "reference.npz"
+    if path.exists():
+        ref = load_npz(path)
+        log(f"reference: {len(ref['front'])} points ({ref['source']}) from {path} (fixed at sweep start)")
+        return ref
+    t0 = time.perf_counter()
+    kind = cfg.reference["kind"]
+    if kind == "best-known":
+        cache = fronts_cache()
+        try:
+            cache.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            cache = None
+        settings = {k: cfg.reference[k] for k in config.BEST_KNOWN}
+        front = nondominated_points(best_known_cached(make_problem(cfg.preset), cache, log=log, **settings).F)
+    elif kind == "pilot":
+        spec = pilot_spec(cfg)
+        log(f"reference: pilot of {spec.n_real} {spec.algorithm} runs (pop {spec.pop}, {spec.iters} iterations, "
+            f"default hyper-parameters, seeds {PILOT_SEED0}..) ...")
+        _, res = next(backend.map(run_chunk, [spec]))
+        front = nondominated_points(res["front_F"])
+    if len(front) == 0:
+        raise RuntimeError(f"the reference ({kind}) holds no feasible trajectory; raise --iters or pass "
+                           "--reference-front")
+    ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": np.float64(config.HV_REFERENCE),
+           "source": np.asarray(kind)}
+    atomic_savez(path, ref)
+    log(f"reference: {len(front)} points ({kind}) in {time.perf_counter() - t0:.1f} s; ideal "
+        f"{np.round(ref['ideal'], 4).tolist()}, nadir {np.round(ref['nadir'], 4).tolist()}")
+    return ref
