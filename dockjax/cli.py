@@ -12,6 +12,7 @@ part of the library it runs, so that ``dockjax plan`` does not load the study ma
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import time
@@ -211,7 +212,8 @@ class CompareArgs:
     """Gradient-refinement steps of the "IMOCS + refine" rows (every IMOCS run's final population polished by
     dockjax.refine); 0 leaves them out."""
     best_known: bool = True
-    """Use the best-known front (ε-constraint sweep with gradient refinement, computed from the problem alone;
+    """Use the best-known front (the shortest time and the least jerk at time caps up to the longest, by SQP
+    and gradient refinement, computed from the problem alone;
     cached in <out>/<preset>/best_known.npz) as the indicators' reference front; --no-best-known uses the
     union of the algorithms' final sets instead."""
     best_known_points: int = config.BEST_KNOWN["n_points"]
@@ -267,8 +269,7 @@ def compare(args: CompareArgs) -> int:
             (args.out / preset).mkdir(parents=True, exist_ok=True)
             best = best_known_cached(make_problem(preset, right_arm), args.out / preset / "best_known.npz",
                                      log=lambda m, p=preset: print(f"[{p}] {m}"),
-                                     n_points=args.best_known_points, steps=args.best_known_steps,
-                                     rows=rows)
+                                     n_points=args.best_known_points, steps=args.best_known_steps, rows=rows)
         study = run_study(preset, algorithms=args.algorithms, seeds=range(args.seeds),
                           pop_size=args.pop, n_iter=args.iters, refine_steps=args.refine_steps,
                           best_known=best, right_arm=right_arm, refine_rows=rows)
@@ -307,25 +308,33 @@ class PlanArgs:
     """Weights (w_T, w_jerk) of Eq. 26; overrides --select."""
     rate: float = config.RATE
     """Servo rate of the CSV [Hz]."""
+    method: Literal["direct", "imocs", "mocs", "nsga2", "mopso"] = "direct"
+    """How the front is found: direct (shortest time, then the least jerk at --n-front time caps, by SQP) or an
+    optimiser run (--pop, --iters, --seed, --refine-steps) whose chosen point is then solved to least jerk."""
+    n_front: int = config.PLAN_FRONT
+    """Time caps of the direct method's least-jerk front."""
+    explain: bool = False
+    """Print which limits bind and what each is worth (d T_min/d limit or d jerk/d limit), checked by
+    re-planning with each binding limit changed by ±1 %."""
     pop: int = config.POP_SIZE
-    """Optimiser population."""
+    """Optimiser population (--method other than direct)."""
     iters: int = config.N_ITER
-    """Optimiser iterations."""
+    """Optimiser iterations (--method other than direct)."""
     seed: int = 0
-    """Random seed."""
+    """Random seed (--method other than direct)."""
     refine_steps: int = config.PLAN_REFINE_STEPS
-    """Steps of gradient refinement (dockjax.refine) polishing the optimiser's front before the choice; 0: none."""
+    """Steps of gradient refinement (dockjax.refine) polishing the optimiser's front; 0: none."""
     out: Path = Path("plan")
     """Output folder."""
     devices: int | None = None
     """CPU devices the work is shared over (the run is the same for any count, the refinement's scores equal to
-    rounding). Default: one per usable core."""
+    rounding). Default: one per usable core for an optimiser, one for --method direct."""
 
 
 def plan(args: PlanArgs) -> int:
     """Validate, plan, certify, write."""
     from . import select
-    from .plan import PlanError, load_limits, write_plan
+    from .plan import PlanError, explain_text, load_limits, write_plan
     from .plan import plan as make_plan
     from .problem import DockingProblem
 
@@ -338,9 +347,15 @@ def plan(args: PlanArgs) -> int:
         return _error(f"--pop must be >= 4 and --iters >= 1, got {args.pop} and {args.iters}")
     if args.refine_steps < 0:
         return _error(f"--refine-steps must be >= 0, got {args.refine_steps}")
+    if not 2 <= args.n_front <= 200:
+        return _error(f"--n-front must lie in [2, 200], got {args.n_front}")
+    if args.rate > config.MAX_RATE:
+        return _error(f"--rate must be at most {config.MAX_RATE:g} Hz, got {args.rate:g}")
     weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
     try:
-        claim_devices(args.devices)  # before any JAX computation (DockingProblem computes)
+        # before any JAX computation (DockingProblem computes); the direct method solves one
+        # trajectory at a time, which one device does fastest
+        claim_devices(args.devices if args.devices is not None or args.method != "direct" else 1)
         select.check_weights(weights, 2)
         extra = load_limits(args.limits) if args.limits is not None else {}
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
@@ -351,8 +366,9 @@ def plan(args: PlanArgs) -> int:
         return _error(f"--out {args.out} exists and is not a folder")
     enable_compilation_cache()
     try:
-        p = make_plan(problem, weights=weights, rate=args.rate, pop_size=args.pop, n_iter=args.iters,
-                      seed=args.seed, refine_steps=args.refine_steps)
+        p = make_plan(problem, weights=weights, rate=args.rate, method=args.method, pop_size=args.pop,
+                      n_iter=args.iters, seed=args.seed, refine_steps=args.refine_steps, n_front=args.n_front,
+                      check_sensitivities=args.explain)
     except PlanError as exc:
         print(f"no plan: {exc}", file=sys.stderr)
         return 1
@@ -360,8 +376,10 @@ def plan(args: PlanArgs) -> int:
         files = write_plan(p, args.out)
     except OSError as exc:
         return _error(f"--out {args.out} cannot be written: {exc}")
-    print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g}; every limit certified at {args.rate:g} Hz "
-          f"and by the kernel's rigorous per-span maxima")
+    print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g} (shortest feasible T = {p.settings['shortest_T_s']:.3f} s); "
+          f"every limit certified at {args.rate:g} Hz and by the kernel's rigorous per-span maxima")
+    if args.explain:
+        print(explain_text(p.explanation))
     for f in files:
         print(f"  wrote {f}")
     return 0
@@ -420,9 +438,141 @@ def demo(args: DemoArgs) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------------- track
+@dataclass(frozen=True)
+class TrackArgs:
+    """Plan a move, then simulate each joint's servo loop following it at the controller rate (the paper's §6):
+    write tracking.json (max position and velocity errors per joint, the axis model), tracking.csv and
+    tracking.png (planned against tracked position and velocity of the moving joints) into --out.
+    Exit codes: 0 tracked, 1 no trajectory meets the limits, 2 bad input."""
+
+    move: Literal["x", "z", "custom"] = "x"
+    """The paper's X move (4.04 to -1.514 mm) or Z move (-1591.03 to -1601.47 mm), or custom (--start, --goal)."""
+    start: Pose | None = None
+    """Start pose for --move custom: x y z [mm] pitch yaw roll [deg]."""
+    goal: Pose | None = None
+    """Goal pose for --move custom."""
+    interval_bounds: tuple[float, float] = config.INTERVAL_BOUNDS
+    """Bounds of each of the six knot intervals [s]."""
+    weights: tuple[float, float] = (1.0, 1.0)
+    """Weights (w_T, w_jerk) of Eq. 26 choosing the planned trajectory."""
+    rate: float = config.RATE
+    """Controller rate [Hz]."""
+    mass: float = 1.0
+    """Effective inertia relative to the nominal (the drive command is an acceleration for the nominal)."""
+    damping: float = 2.0
+    """Viscous damping [1/s]."""
+    friction: float = 1.0
+    """Coulomb friction [joint units/s^2]."""
+    mass_error: float = 0.05
+    """Relative error of the controller's inertia estimate (feed-forward and default gains)."""
+    damping_error: float = 0.05
+    """Relative error of the controller's damping estimate."""
+    bandwidth: float = 10.0
+    """Closed-loop bandwidth of the default PID gains [Hz]."""
+    damping_ratio: float = 0.7
+    """Damping ratio of the default gains' complex pole pair."""
+    kp: float | None = None
+    """Proportional gain [1/s^2] (default: from --bandwidth)."""
+    ki: float | None = None
+    """Integral gain [1/s^3] (default: from --bandwidth)."""
+    kd: float | None = None
+    """Derivative gain [1/s] (default: from --bandwidth)."""
+    resolution: float = 1e-4
+    """Encoder resolution [joint units]; 0: exact measurement."""
+    out: Path = Path("track")
+    """Output folder."""
+
+
+def track(args: TrackArgs) -> int:
+    """Validate, plan, simulate, write."""
+    from dataclasses import asdict
+
+    from . import select
+    from . import track as servo
+    from .io import atomic_write_text
+    from .plan import PlanError
+    from .plan import plan as make_plan
+    from .plots import plot_tracking
+    from .problem import DockingProblem
+
+    if args.move == "custom":
+        if args.start is None or args.goal is None:
+            return _error("--move custom needs --start and --goal")
+        start, goal = args.start, args.goal
+    else:
+        if args.start is not None or args.goal is not None:
+            return _error(f"--start/--goal need --move custom (--move {args.move} is the paper's move)")
+        start, goal = servo.PAPER_MOVES[args.move]
+    for name, pose in (("start", start), ("goal", goal)):
+        if not all(math.isfinite(v) for v in pose):
+            return _error(f"--{name} must be six finite numbers, got {list(pose)}")
+    model = servo.AxisModel(mass=args.mass, damping=args.damping, friction=args.friction, mass_error=args.mass_error,
+                            damping_error=args.damping_error, bandwidth=args.bandwidth,
+                            damping_ratio=args.damping_ratio, kp=args.kp, ki=args.ki, kd=args.kd,
+                            resolution=args.resolution)
+    try:
+        select.check_weights(args.weights, 2)
+        largest = servo.check_model(model, args.rate, config.N_JOINTS)
+        problem = DockingProblem(start=start, goal=goal, interval_bounds=args.interval_bounds)
+    except ValueError as exc:
+        return _error(str(exc).replace("model.", "--").replace("_", "-") if "model." in str(exc) else str(exc))
+    if args.out.exists() and not args.out.is_dir():
+        return _error(f"--out {args.out} exists and is not a folder")
+    use_cpu_devices(1)
+    enable_compilation_cache()
+    try:
+        p = make_plan(problem, weights=args.weights, rate=args.rate, check_sensitivities=False)
+    except PlanError as exc:
+        print(f"no plan: {exc}", file=sys.stderr)
+        return 1
+    result = servo.track(p.samples, model, args.rate)
+    q0, q1 = p.samples["position"][0], p.samples["position"][-1]
+    moving = [j for j in range(config.N_JOINTS) if abs(q1[j] - q0[j]) > 1e-9]
+    report = {
+        "move": args.move, "start": list(start), "goal": list(goal), "T_s": p.T, "jerk": p.jerk,
+        "rate_hz": args.rate, "largest_closed_loop_pole": largest,
+        "model": {k: v for k, v in asdict(model).items()},
+        "joints": {config.JOINT_NAMES[j]: {"unit": config.JOINT_UNITS[j],
+                                           "max_position_error": float(result.max_position_error[j]),
+                                           "max_velocity_error": float(result.max_velocity_error[j]),
+                                           "max_measured_velocity_error": float(result.max_measured_velocity_error[j])}
+                   for j in range(config.N_JOINTS)},
+    }
+    if args.move in servo.PAPER_ERRORS:
+        pe, ve = servo.PAPER_ERRORS[args.move]
+        report["paper"] = {"joint": config.JOINT_NAMES[servo.PAPER_JOINTS[args.move]], "max_position_error_mm": pe,
+                           "max_velocity_error_mm_s": ve}
+    cols = [result.t] + [a[:, j] for j in moving for a in (result.planned_position, result.position,
+                                                            result.planned_velocity, result.velocity)]
+    header = ["t [s]"] + [f"{config.JOINT_NAMES[j]}{k}" for j in moving
+                          for k in (" planned", " tracked", "_vel planned", "_vel tracked")]
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out / "tracking.json", json.dumps(report, indent=2) + "\n")
+        table = np.stack(cols, 1)
+        atomic_write_text(args.out / "tracking.csv", ",".join(header) + "\n"
+                          + "\n".join(",".join(f"{v:.12g}" for v in row) for row in table) + "\n")
+        plot_tracking(result, moving[:2] if moving else [0], args.out / "tracking.png",
+                      title=f"servo tracking of the planned move (T = {p.T:.2f} s, {args.rate:g} Hz)")
+    except OSError as exc:
+        return _error(f"--out {args.out} cannot be written: {exc}")
+    print(f"planned T = {p.T:.3f} s; servo at {args.rate:g} Hz (largest closed-loop |z| = {largest:.4f})")
+    print(f"{'joint':<8} {'max |position error|':>22} {'max |velocity error|':>22} {'measured velocity':>18}")
+    for j in moving:
+        u = config.JOINT_UNITS[j]
+        print(f"{config.JOINT_NAMES[j]:<8} {result.max_position_error[j]:>18.3g} {u:<3} "
+              f"{result.max_velocity_error[j]:>16.3g} {u}/s {result.max_measured_velocity_error[j]:>12.3g} {u}/s")
+    if "paper" in report:
+        print(f"paper §6 ({report['paper']['joint']}, hardware): {report['paper']['max_position_error_mm']} mm, "
+              f"{report['paper']['max_velocity_error_mm_s']} mm/s")
+    print(f"  wrote {args.out / 'tracking.json'}, tracking.csv, tracking.png")
+    return 0
+
+
 # ------------------------------------------------------------------------------ dispatch
 COMMANDS = {"sweep": (SweepArgs, sweep), "compare": (CompareArgs, compare), "plan": (PlanArgs, plan),
-            "demo": (DemoArgs, demo)}
+            "track": (TrackArgs, track), "demo": (DemoArgs, demo)}
 """Subcommand → (options, function)."""
 
 

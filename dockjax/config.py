@@ -76,7 +76,7 @@ PRESETS: dict[str, dict] = {
 """Problem presets: ``paper`` (h in [3.5, 10] s, conventions §3) and ``wide`` (h in
 [0.5, 10] s, where the velocity limits rather than the interval bounds decide the fast end
 of the front)."""
-BEST_KNOWN = dict(n_points=150, n_perturbed=0, steps=600)
+BEST_KNOWN = dict(n_points=150, n_exact=20, steps=600)
 """Settings of the best-known front used as the comparison's reference front."""
 MEMETIC_STEPS = 100
 """Gradient-refinement steps of the comparison's "IMOCS + refine" rows."""
@@ -84,8 +84,12 @@ MEMETIC_STEPS = 100
 # -- one certified plan ---------------------------------------------------------------------
 RATE = 1000.0
 """Servo rate of a plan's samples (Hz)."""
+MAX_RATE = 10_000.0
+"""Highest servo rate a plan or a tracking simulation accepts (Hz)."""
 PLAN_REFINE_STEPS = 300
-"""Gradient-refinement steps of the front before a plan chooses its point."""
+"""Gradient-refinement steps of an optimiser's front before a plan chooses its point."""
+PLAN_FRONT = 8
+"""Time caps of the least-jerk front a plan chooses from (besides the shortest time)."""
 
 # -- the sweep (the main job) ---------------------------------------------------------------
 SWEEP_RHO: tuple[float, ...] = (0.3, 0.4, 0.5)

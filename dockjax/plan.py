@@ -1,16 +1,18 @@
-"""One certified docking trajectory a controller can run (the ``dockjax plan`` command).
+"""One certified, explained docking trajectory a controller can run (``dockjax plan``).
 
-:func:`plan` optimises the problem (IMOCS by default), ranks the feasible front by the
-weighted satisfaction of Eq. 26 (conventions §8), and certifies the best candidate before anything
-is written: the trajectory sampled at the servo rate must respect every limit at every
-sample, and the kernel's per-span maxima (conventions §6: rigorous upper bounds, never
-understated, in every right-arm treatment) must too. If
-the chosen candidate fails, the next best is tried; if none passes, :class:`PlanError`
-names the limit that cannot be met.
+:func:`plan` finds the problem's shortest feasible time and its least-jerk front by
+sequential quadratic programming (:mod:`dockjax.solve`; or runs an optimiser), chooses a
+point by the weighted satisfaction of Eq. 26 (conventions §8), and certifies it before
+anything is written: the trajectory sampled at the servo rate must respect every limit at
+every sample, and the kernel's per-span maxima (conventions §6: rigorous upper bounds, never
+understated, in every right-arm treatment) must too; otherwise :class:`PlanError` names the
+limit that cannot be met. :func:`explain` says which limits bind and what each is worth;
+:class:`Planner` replans new poses of one problem in milliseconds.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tomllib
@@ -19,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import config, plots, select
+from . import checks, config, plots, select, solve
+from .algorithms import ALGORITHMS
 from .io import atomic_write_text
 from .metrics import nondominated_points
 from .optimize import optimize
@@ -28,7 +31,7 @@ from .refine import refine as polish
 from .trajectory import Trajectory
 from .version import __version__
 
-__all__ = ["PlanError", "Plan", "plan", "load_limits", "write_plan"]
+__all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "load_limits", "write_plan", "METHODS"]
 
 
 class PlanError(RuntimeError):
@@ -50,15 +53,15 @@ class Plan:
     rate: float
     weights: tuple
     settings: dict = field(default_factory=dict)
+    explanation: dict = field(default_factory=dict)
 
     def margins(self) -> dict:
         """Per joint: max |velocity|, |acceleration|, travel about home (from the samples),
-        and certified margins to the limits (from the kernel's G, never understated: within
-        5 % of a limit exact for the joints linear in the pose and within the right-arm
-        treatment's tolerance for the others; otherwise conservative by at most 1 % of the
-        limit)."""
+        and certified margins to the limits (from the kernel's G with every span through
+        the root chain, never understated: exact to rounding for the joints linear in the
+        pose, within the right-arm treatment's tolerance for the others)."""
         s, lim = self.samples, self.problem.limits
-        G = self.problem.evaluate(self.x[None])[1][0].reshape(8, 3)
+        G = self.problem.evaluate(self.x[None], screen=False)[1][0].reshape(8, 3)
         out = {}
         for j, name in enumerate(config.JOINT_NAMES):
             exact = (G[j] + 1.0) * lim[j]
@@ -114,28 +117,85 @@ def _sample_violation(problem: DockingProblem, s: dict) -> tuple[float, str]:
     return float(vals[j, k]), f"{config.JOINT_NAMES[j]} {config.QUANTITIES[k]}"
 
 
-def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: float = config.RATE,
-         pop_size: int = config.POP_SIZE, n_iter: int = config.N_ITER, seed: int = 0, algorithm: str = "imocs",
-         refine_steps: int = config.PLAN_REFINE_STEPS) -> Plan:
-    """Optimise, polish the front with ``refine_steps`` steps of gradient refinement
-    (:mod:`dockjax.refine`; 0: none), choose by Eq. 26 with ``weights`` (w_T, w_jerk), certify, and return
-    a Plan.
+METHODS = ("direct",) + tuple(ALGORITHMS)
+"""Plan methods: ``"direct"`` (default: shortest time by SQP, then the least-jerk front by
+SQP) or an optimiser of :data:`dockjax.algorithms.ALGORITHMS` whose front is polished."""
 
-    Raises ValueError on bad input (before any compilation) and :class:`PlanError` when no
-    candidate can meet the limits.
-    """
-    problem = problem or DockingProblem()
-    w = select.check_weights(weights, 2)
-    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+BINDING = 1e-3
+"""A limit binds when the plan's kernel column is within this fraction of the limit."""
+
+FRONT_ITER = 60
+"""SQP iterations per cap of a plan's front (the chosen point is then solved to convergence)."""
+
+FD_STEP = 0.01
+"""Relative change of a limit in the finite-difference check of its sensitivity."""
+
+
+def _check_rate(rate):
+    if isinstance(rate, bool) or not isinstance(rate, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(rate) or rate <= 0:
         raise ValueError(f"rate must be a positive number of samples per second, got {rate!r}")
-    res = optimize(algorithm, problem, seeds=[seed], pop_size=pop_size, n_iter=n_iter)
+    if float(rate) > config.MAX_RATE:
+        raise ValueError(f"rate must be at most {config.MAX_RATE:g} samples per second, got {rate!r}")
+    return float(rate)
+
+
+def _no_time_error(problem: DockingProblem) -> PlanError:
+    """The limit that no trajectory of the box can meet, from the straight line slowed as far
+    as the box allows."""
+    x = solve.straight_line(problem, [config.N_INTERVALS * problem.interval_bounds[1]])[0]
+    F, G = problem.evaluate(x[None])
+    G3 = G[0].reshape(8, 3)
+    need = np.stack([np.zeros(8), G3[:, 1] + 1.0, np.sqrt(np.maximum(G3[:, 2] + 1.0, 0.0))], 1)
+    jj, kk = np.unravel_index(np.argmax(np.where(np.isfinite(G3), G3, np.inf)), G3.shape)
+    if G3[:, 0].max() > 0:
+        jj, kk = int(np.argmax(G3[:, 0])), 0
+        extra = f"the straight line already exceeds it by {100 * G3[jj, 0]:.2f} %"
+    else:
+        jj, kk = np.unravel_index(np.argmax(need), need.shape)
+        extra = (f"even the straight line would need T >= {F[0, 0] * need[jj, kk]:.4g} s, beyond the longest "
+                 f"T = {F[0, 0]:g} s the interval bounds {problem.interval_bounds} allow")
+    unit = config.JOINT_UNITS[jj] + ["", "/s", "/s^2"][kk]
+    return PlanError(f"no trajectory meets the limit {config.JOINT_NAMES[jj]} {config.QUANTITIES[kk]} "
+                     f"({problem.limits[jj, kk]:g} {unit}): {extra}")
+
+
+def _shortest(problem: DockingProblem, x0=None) -> solve.Solution:
+    """The shortest-time solution, the least jerk among the shortest
+    (:func:`dockjax.solve.shortest`), from ``x0`` (default: the straight line at the
+    shortest T the box allows, slowed until feasible)."""
+    if x0 is None:
+        x0 = solve.straight_line(problem, [config.N_INTERVALS * problem.interval_bounds[0]])[0]
+    sol = solve.shortest(problem, x0)
+    if sol is None:
+        raise _no_time_error(problem)
+    return sol
+
+
+def _caps(t_min: float, t_max: float, n: int) -> np.ndarray:
+    """``n`` time caps from t_min to t_max, geometrically spaced (denser where the front is
+    steep); t_min itself is the shortest-time solution, not a cap."""
+    return np.geomspace(t_min, t_max, n + 1)[1:] if t_max > t_min * (1 + 1e-9) else np.zeros(0)
+
+
+def _direct_front(problem: DockingProblem, n_front: int, shortest=None):
+    """``(shortest, [least-jerk solutions at n_front caps up to the longest T])``, the front
+    by continuation from the shortest-time solution (one SQP solve per cap)."""
+    shortest = _shortest(problem) if shortest is None else shortest
+    caps = _caps(shortest.F[0], config.N_INTERVALS * problem.interval_bounds[1], n_front)
+    return shortest, solve.least_jerk_front(problem, shortest, caps, line=False, max_iter=FRONT_ITER, restarts=0)
+
+
+def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
+    """The feasible non-dominated front of one optimiser run, polished by refine."""
+    res = optimize(method, problem, seeds=[seed], pop_size=pop_size, n_iter=n_iter)
     m = res.front[0]
     if not m.any():
         j = int(np.argmin(res.cv[0]))
         G = res.G[0][j].reshape(8, 3)
         jj, kk = np.unravel_index(np.argmax(G), G.shape)
         raise PlanError(
-            f"no feasible trajectory found: the limit {config.JOINT_NAMES[jj]} "
+            f"no feasible trajectory found by {method}: the limit {config.JOINT_NAMES[jj]} "
             f"{config.QUANTITIES[kk]} ({problem.limits[jj, kk]:g} "
             f"{config.JOINT_UNITS[jj]}{['', '/s', '/s^2'][kk]}) cannot be met "
             f"(best candidate exceeds it by {100 * G[jj, kk]:.1f} %; T is at most "
@@ -146,25 +206,246 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     X = X[idx]
     if refine_steps:
         r = polish(problem, X, steps=refine_steps)
-        keep = r.feasible
-        X = np.concatenate([X, r.X[keep & r.improved]])
-        F, idx = nondominated_points(np.concatenate([F, r.F[keep & r.improved]]), return_index=True)
+        keep = r.feasible & r.improved
+        X = np.concatenate([X, r.X[keep]])
+        F, idx = nondominated_points(np.concatenate([F, r.F[keep]]), return_index=True)
         X = X[idx]
-    order = np.argsort(-np.asarray(select.satisfaction(F, w)), kind="stable")
-    worst = (np.inf, "")
-    for j in order:
-        traj = problem.decode(X[j])
-        s = traj.sample(rate)
-        v, name = _sample_violation(problem, s)
-        g = problem.evaluate(X[j][None])[1][0]
-        if v <= 0 and np.all(g <= 0):
-            settings = {"weights": list(map(float, w)), "rate": float(rate), "pop_size": pop_size,
-                        "n_iter": n_iter, "seed": seed, "algorithm": algorithm,
-                        "refine_steps": int(refine_steps)}
-            return Plan(problem, traj, X[j], float(F[j, 0]), float(F[j, 1]), F[np.argsort(F[:, 0])],
-                        s, float(rate), tuple(w), settings)
-        worst = min(worst, (max(v, float(g.max())), name))
-    raise PlanError(f"no candidate passes the certificate; closest fails {worst[1]} by {100 * worst[0]:.2f} %")
+    return X, F
+
+
+def _certify(problem: DockingProblem, x, rate: float):
+    """``(samples, violation, name)``: the trajectory sampled at ``rate`` and its largest
+    sampled or kernel excess over a limit (<= 0: certified)."""
+    s = problem.decode(x).sample(rate)
+    v, name = _sample_violation(problem, s)
+    g = problem.evaluate(np.asarray(x)[None], screen=False)[1][0]
+    return s, max(v, float(g.max())), name
+
+
+def _resolve(problem, sol: solve.Solution, cap):
+    """Solve the programme of ``sol`` again (warm) on ``problem``: shortest time when cap is
+    None, else least jerk at ``cap``."""
+    if cap is None:
+        return solve.min_time(problem, sol.x)
+    return solve.min_jerk(problem, sol.x, cap)
+
+
+def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time_optimal: bool,
+            check: bool = True) -> dict:
+    """Which limits bind and what each is worth.
+
+    A limit binds when its kernel column is within :data:`BINDING` of it; its time is where
+    the sampled quantity peaks. ``sensitivity`` is ``d T_min / d limit`` (s per limit
+    unit) for the shortest-time plan, ``d jerk / d limit`` at fixed T otherwise, from the
+    optimum's Lagrange multipliers (:func:`dockjax.solve.sensitivities`); with ``check``,
+    ``finite_difference`` re-plans with the limit changed by ``± FD_STEP`` (central
+    difference). For a fixed-T plan ``d_jerk_d_T`` is the value of time (the multiplier of
+    the cap), checked the same way."""
+    sens = solve.sensitivities(problem, sol)
+    G = sol.G.reshape(8, 3)
+    cap = None if time_optimal else float(sol.F[0])
+    objective = 0 if time_optimal else 1
+    lim = np.asarray(problem.limits)
+    keys = ("travel", "velocity", "acceleration")
+    rows = []
+    for j, k in zip(*np.nonzero(G > -BINDING)):
+        name = config.JOINT_NAMES[j]
+        series = {0: np.abs(samples["position"][:, j] - problem.home[j]), 1: np.abs(samples["velocity"][:, j]),
+                  2: np.abs(samples["acceleration"][:, j])}[k]
+        row = {"limit": f"{name} {config.QUANTITIES[k]}", "joint": name, "quantity": config.QUANTITIES[k],
+               "value": float(lim[j, k]), "unit": config.JOINT_UNITS[j] + ["", "/s", "/s^2"][k],
+               "ratio": float(G[j, k] + 1.0), "time_s": float(samples["t"][int(np.argmax(series))]),
+               "sensitivity": float(sens[j, k])}
+        if check:
+            vals = []
+            for f in (1.0 + FD_STEP, 1.0 - FD_STEP):
+                arr = np.array(getattr(problem, keys[k]), np.float64)
+                arr[j] *= f
+                other = _resolve(dataclasses.replace(problem, **{keys[k]: arr}), sol, cap)
+                vals.append(np.nan if other is None else float(other.F[objective]))
+            row["finite_difference"] = (vals[0] - vals[1]) / (2 * FD_STEP * lim[j, k])
+        rows.append(row)
+    h = np.asarray(sol.x[: config.N_INTERVALS])
+    out = {"objective": "T_s" if time_optimal else "jerk", "binding": rows,
+           "intervals_at_bounds": {"lower": int(np.sum(h <= problem.interval_bounds[0] * (1 + 1e-6))),
+                                   "upper": int(np.sum(h >= problem.interval_bounds[1] * (1 - 1e-6)))},
+           "note": "sensitivity: d objective / d limit (objective units per limit unit)"}
+    if not time_optimal:
+        out["d_jerk_d_T"] = float(-sol.cap_multiplier * sol.objective_scale)
+        if check:
+            vals = []
+            for f in (1.0 + FD_STEP, 1.0 - FD_STEP):
+                other = solve.min_jerk(problem, solve.time_scale(problem, sol.x, f) if f > 1 else sol.x, cap * f)
+                vals.append(np.nan if other is None else float(other.F[1]))
+            out["d_jerk_d_T_finite_difference"] = (vals[0] - vals[1]) / (2 * FD_STEP * cap)
+    return out
+
+
+def _check_common(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front):
+    w = select.check_weights(weights, 2)
+    rate = _check_rate(rate)
+    checks.choice("method", method, METHODS)
+    checks.integer("pop_size", pop_size, 4)
+    checks.integer("n_iter", n_iter, 1)
+    checks.integer("seed", seed, 0, 2**63 - 1)
+    checks.integer("refine_steps", refine_steps, 0)
+    checks.integer("n_front", n_front, 2, 200)
+    return w, rate
+
+
+def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: float = config.RATE,
+         method: str = "direct", pop_size: int = config.POP_SIZE, n_iter: int = config.N_ITER, seed: int = 0,
+         refine_steps: int = config.PLAN_REFINE_STEPS, n_front: int = config.PLAN_FRONT,
+         check_sensitivities: bool = True) -> Plan:
+    """Plan one certified trajectory for ``problem`` and explain it.
+
+    ``method="direct"`` (default): the shortest time by SQP (:func:`dockjax.solve.min_time`),
+    then the least jerk at ``n_front`` time caps up to the longest T
+    (:func:`dockjax.solve.least_jerk_front`); an optimiser name (``"imocs"``, ...) runs it
+    (``pop_size``, ``n_iter``, ``seed``), polishes its front with ``refine_steps`` of
+    :mod:`dockjax.refine`, and solves the least jerk again at the chosen T. The front point
+    with the best weighted satisfaction (Eq. 26, ``weights`` = (w_T, w_jerk)) is chosen; a
+    weight of 0 on jerk gives the shortest-time plan. The choice is certified (sampled at
+    ``rate`` and by the kernel's rigorous maxima) and explained (:func:`explain`; with
+    ``check_sensitivities`` the sensitivities are checked by re-planning).
+
+    Raises ValueError on bad input (before any work) and :class:`PlanError` when no
+    trajectory meets the limits.
+    """
+    problem = problem or DockingProblem()
+    if not isinstance(problem, DockingProblem):
+        raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
+    w, rate = _check_common(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front)
+    time_only = w[1] == 0
+    shortest = _shortest(problem)
+    if method == "direct":
+        _, front = _direct_front(problem, n_front, shortest)
+        sols = [shortest] + front
+        front_F = np.array([s.F for s in sols])
+        chosen = shortest if time_only else sols[select.choose(front_F, w)]
+        if chosen is not shortest:  # the chosen cap solved once more, from the straight line too
+            chosen = solve.least_jerk(problem, float(chosen.F[0]), [chosen.x]) or chosen
+    else:
+        X, F = _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps)
+        chosen = shortest
+        if not time_only:
+            j = select.choose(F, w)
+            chosen = solve.least_jerk(problem, float(F[j, 0]), [X[j]])
+            if chosen is None:
+                raise PlanError(f"the least-jerk solve at T = {F[j, 0]:.6g} s found no certified trajectory")
+        front_F = np.concatenate([F, chosen.F[None], shortest.F[None]])
+    samples, v, name = _certify(problem, chosen.x, rate)
+    if v > 0:
+        raise PlanError(f"the chosen trajectory fails {name} by {100 * v:.2f} % (certificate)")
+    time_only = chosen is shortest
+    why = explain(problem, chosen, samples, time_optimal=time_only, check=check_sensitivities)
+    settings = {"weights": list(map(float, w)), "rate": rate, "method": method, "n_front": n_front,
+                "shortest_T_s": float(shortest.F[0])}
+    if method != "direct":
+        settings.update(pop_size=pop_size, n_iter=n_iter, seed=seed, refine_steps=int(refine_steps))
+    F = nondominated_points(np.asarray(front_F, np.float64))
+    return Plan(problem, problem.decode(chosen.x), chosen.x, float(chosen.F[0]), float(chosen.F[1]), F,
+                samples, rate, tuple(w), settings, why)
+
+
+class Planner:
+    """Plans for many start and goal poses of one problem shape, fast once warm.
+
+    The first :meth:`plan` solves the problem given to the constructor in full
+    (:func:`plan`'s ``"direct"`` method) and keeps its front as a template. Every later
+    call carries the template over to the new poses (:func:`dockjax.solve.map_to`), slows
+    each point by exact time scaling until the kernel certifies it, chooses by the
+    weights among them, and solves the least jerk (or the shortest time, for a zero jerk
+    weight) warm from the chosen point, all in programmes compiled once. The answer is
+    certified like :func:`plan`'s; its explanation carries the multiplier sensitivities
+    (no re-planning).
+
+    ``problem``: the template (default :class:`DockingProblem`); start and goal of later
+    calls replace its own, every other field is kept. ``max_iter``: SQP iterations of a
+    warm solve.
+    """
+
+    def __init__(self, problem: DockingProblem | None = None, *, rate: float = config.RATE,
+                 n_front: int = config.PLAN_FRONT, max_iter: int = 40):
+        self.problem = problem or DockingProblem()
+        if not isinstance(self.problem, DockingProblem):
+            raise ValueError(f"problem must be a DockingProblem, got {type(self.problem).__name__}")
+        self.rate = _check_rate(rate)
+        self.n_front = checks.integer("n_front", n_front, 2, 200)
+        self.max_iter = checks.integer("max_iter", max_iter, 1)
+        self._template: np.ndarray | None = None
+
+    def _problem_for(self, start, goal) -> DockingProblem:
+        """The template with another start and goal (home: their midpoint, as by default)."""
+        p = self.problem
+        if start is None and goal is None:
+            return p
+        fields = p.identity()
+        fields.pop("home")
+        fields.update(start=p.start if start is None else start, goal=p.goal if goal is None else goal)
+        return DockingProblem(**fields)
+
+    def warm(self) -> "Planner":
+        """Solve the template problem (the first :meth:`plan` does it otherwise)."""
+        if self._template is None:
+            shortest, front = _direct_front(self.problem, self.n_front)
+            self._template = np.array([shortest.x] + [s.x for s in front])
+            solve.min_jerk(self.problem, front[0].x, float(front[0].F[0]), max_iter=self.max_iter)
+        return self
+
+    def plan(self, start=None, goal=None, *, weights=(1.0, 1.0)) -> Plan:
+        """A certified plan from ``start`` to ``goal`` (6,) (default: the template's), chosen
+        by ``weights`` (w_T, w_jerk) as in :func:`plan`. Raises ValueError on bad input and
+        :class:`PlanError` when no trajectory is found."""
+        w = select.check_weights(weights, 2)
+        problem = self._problem_for(start, goal)
+        self.warm()
+        X = solve.map_to(problem, self.problem, self._template)
+        F, G = problem.evaluate(X)
+        G3 = G.reshape(len(X), 8, 3)
+        need = np.maximum(1.0, np.maximum(G3[:, :, 1].max(1) + 1.0, np.sqrt(np.maximum(G3[:, :, 2].max(1) + 1.0,
+                                                                                        0.0))))
+        ok = G3[:, :, 0].max(1) <= 0
+        X = np.array([solve.time_scale(problem, x, s * (1 + 1e-9)) for x, s in zip(X, need)])
+        ok &= np.all(X[:, : config.N_INTERVALS] <= problem.upper[: config.N_INTERVALS], 1)
+        if not ok.any():
+            return plan(problem, weights=w, rate=self.rate, n_front=self.n_front, check_sensitivities=False)
+        Fs, _ = problem.evaluate(X)
+        j = int(np.flatnonzero(ok)[select.choose(Fs[ok], w)])
+        if w[1] == 0:
+            sol = solve.min_time(problem, X[j], max_iter=self.max_iter, restarts=0)
+        else:
+            sol = solve.min_jerk(problem, X[j], float(Fs[j, 0]), max_iter=self.max_iter, restarts=0)
+        if sol is None:
+            raise PlanError("the warm solve found no certified trajectory")
+        samples, v, name = _certify(problem, sol.x, self.rate)
+        if v > 0:
+            raise PlanError(f"the chosen trajectory fails {name} by {100 * v:.2f} % (certificate)")
+        why = explain(problem, sol, samples, time_optimal=w[1] == 0, check=False)
+        settings = {"weights": list(map(float, w)), "rate": self.rate, "method": "planner", "n_front": self.n_front}
+        return Plan(problem, problem.decode(sol.x), sol.x, float(sol.F[0]), float(sol.F[1]),
+                    nondominated_points(Fs[ok]), samples, self.rate, tuple(w), settings, why)
+
+
+def explain_text(why: dict) -> str:
+    """The explanation of :func:`explain` as lines of text."""
+    obj = "T_min [s]" if why["objective"] == "T_s" else "jerk"
+    lines = [f"binding limits (within {100 * BINDING:g} % of the limit) and d {obj} / d limit:"]
+    if not why["binding"]:
+        lines.append("  none")
+    for r in why["binding"]:
+        fd = r.get("finite_difference")
+        check = f"   re-planned ±{100 * FD_STEP:g} %: {fd:+.5g}" if fd is not None else ""
+        lines.append(f"  {r['limit']:<24} {r['value']:g} {r['unit']:<7} at t = {r['time_s']:7.3f} s   "
+                     f"{r['sensitivity']:+.5g} per {r['unit']}{check}")
+    low = why.get("intervals_at_bounds", {}).get("lower", 0)
+    if low:
+        lines.append(f"  {low} of the 6 knot intervals at their lower bound (--interval-bounds)")
+    if "d_jerk_d_T" in why:
+        fd = why.get("d_jerk_d_T_finite_difference")
+        check = f"   re-planned ±{100 * FD_STEP:g} %: {fd:+.5g}" if fd is not None else ""
+        lines.append(f"  value of time: d jerk / d T = {why['d_jerk_d_T']:+.5g} per s{check}")
+    return "\n".join(lines)
 
 
 def write_plan(p: Plan, out: str | Path) -> list[Path]:
@@ -179,6 +460,7 @@ def write_plan(p: Plan, out: str | Path) -> list[Path]:
         "jerk": p.jerk,
         "x": p.x.tolist(),
         "front": p.front.tolist(),
+        "explanation": p.explanation,
         "joints": p.margins(),
         "settings": {**p.settings, "start": p.problem.start.tolist(), "goal": p.problem.goal.tolist(),
                      "arm_distance": p.problem.arm_distance,
@@ -188,10 +470,14 @@ def write_plan(p: Plan, out: str | Path) -> list[Path]:
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     files.append(out / "summary.json")
-    label = p.settings.get("algorithm", "imocs") + ("+refine" if p.settings.get("refine_steps") else "")
+    method = p.settings.get("method", "direct")
+    label = {"direct": "least-jerk front (SQP)", "planner": "planner (carried-over front)"}.get(
+        method, method + ("+refine" if p.settings.get("refine_steps") else ""))
     files.append(plots.plot_fronts({label: p.front}, out / "front.png", highlight=(p.T, p.jerk),
                                    title=f"front and chosen point (T = {p.T:.2f} s)"))
     s = p.samples
-    files.append(plots.plot_joints(s, p.problem.limits, out / "trajectory.png",
+    files.append(plots.plot_joints(s, p.problem.limits, out / "trajectory.png", home=p.problem.home,
                                    title=f"planned joints, T = {p.T:.2f} s, jerk = {p.jerk:.4g}"))
+    if p.explanation:
+        files.append(plots.plot_sensitivities(p.explanation, out / "limits.png"))
     return files

@@ -17,7 +17,10 @@ from . import config
 from .io import atomic_write
 
 __all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence", "plot_heatmap",
-           "plot_median_iqr", "plot_front_groups", "plot_anytime", "plot_eaf"]
+           "plot_median_iqr", "plot_front_groups", "plot_anytime", "plot_eaf", "plot_tracking", "plot_sensitivities"]
+
+MAX_PLOT_POINTS = 1000
+"""Samples per line drawn by :func:`plot_joints` (a stride keeps the first and last)."""
 
 COLORS = {"imocs": "C3", "mocs": "C1", "nsga2": "C0", "mopso": "C2", "imocs+refine": "C4"}
 LABELS = {"imocs": "IMOCS", "mocs": "MOCS", "nsga2": "NSGA-II", "mopso": "MOPSO",
@@ -82,23 +85,29 @@ def plot_left_arm(samples: dict[str, dict[str, np.ndarray]], path) -> Path:
     return save(fig, path)
 
 
-def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, title="") -> Path:
-    """The eight joints' position, velocity and acceleration, limits dashed.
-    sample: {"t", "position", "velocity", "acceleration"} (m, 8); limits (8, 3)."""
-    fig, axes = _axes(8, 3, figsize=(12, 16), sharex=True)
-    for j in range(8):
-        unit = config.JOINT_UNITS[j]
-        for k, (key, u) in enumerate(zip(("position", "velocity", "acceleration"), ("", "/s", "/s²"))):
-            ax = axes[j, k]
-            ax.plot(sample["t"], sample[key][:, j], color="C0")
-            if k > 0:
-                for sgn in (-1, 1):
-                    ax.axhline(sgn * limits[j, k], color="C3", ls="--", lw=0.8)
-            ax.set_ylabel(f"{config.JOINT_NAMES[j]} [{unit}{u}]", fontsize=7)
-            ax.grid(alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("t [s]")
-    fig.suptitle(title or "joint profiles")
+def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, title="", home=None) -> Path:
+    """The eight joints' travel about home, velocity and acceleration as fractions of their
+    limits (one panel each, limits ±1 dashed). sample: {"t", "position", "velocity",
+    "acceleration"} (m, 8); limits (8, 3); home (8,) (default: the midpoint of the first
+    and last positions)."""
+    fig, axes = _axes(3, 1, figsize=(9, 9), sharex=True)
+    m = len(sample["t"])
+    pick = np.unique(np.append(np.arange(0, m, max(1, -(-m // MAX_PLOT_POINTS))), m - 1))
+    pos = sample["position"]
+    home = 0.5 * (pos[0] + pos[-1]) if home is None else np.asarray(home)
+    series = ((pos - home) / limits[:, 0], sample["velocity"] / limits[:, 1], sample["acceleration"] / limits[:, 2])
+    names = ("travel about home / limit", "velocity / limit", "acceleration / limit")
+    t = sample["t"][pick]
+    for ax, y, name in zip(axes, series, names):
+        for j in range(8):
+            ax.plot(t, y[pick, j], lw=1.2, ls="-" if j < 4 else "--", label=config.JOINT_NAMES[j])
+        for sgn in (-1, 1):
+            ax.axhline(sgn, color="C3", ls=":", lw=1)
+        ax.set_ylabel(name, fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, ncol=4, loc="lower right")
+    axes[-1].set_xlabel("t [s]")
+    fig.suptitle(title or "joint profiles against their limits")
     fig.tight_layout()
     return save(fig, path)
 
@@ -207,4 +216,74 @@ def plot_eaf(surface_a: np.ndarray, surface_b: np.ndarray, diff: np.ndarray, lab
     ax.set_title("EAF difference (red: attained more often by the first, blue: by the second)", fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
+    return save(fig, path)
+
+
+def plot_tracking(result, joints, path, *, title: str = "", error: bool = True) -> Path:
+    """Planned against tracked position and velocity of the ``joints`` (indices) of a
+    :class:`dockjax.track.TrackResult` (the paper's Figs. 23–26): one row per joint, position
+    left and velocity right, the tracking error (tracked − planned) on a twin axis with
+    ``error``."""
+    joints = [int(j) for j in np.atleast_1d(joints)]
+    n = np.asarray(result.position).shape[1]
+    if not joints or any(j < 0 or j >= n for j in joints):
+        raise ValueError(f"joints must be indices from 0 to {n - 1}, got {joints!r}")
+    names = config.JOINT_NAMES if n == config.N_JOINTS else tuple(f"joint {j}" for j in range(n))
+    units = config.JOINT_UNITS if n == config.N_JOINTS else ("",) * n
+    fig, axes = _axes(len(joints), 2, figsize=(12, 3.6 * len(joints)), squeeze=False)
+    t = np.asarray(result.t)
+    pairs = (("position", result.planned_position, result.position, ""),
+             ("velocity", result.planned_velocity, result.velocity, "/s"))
+    for row, j in enumerate(joints):
+        for col, (what, planned, tracked, per) in enumerate(pairs):
+            ax = axes[row, col]
+            planned, tracked = np.asarray(planned)[:, j], np.asarray(tracked)[:, j]
+            unit = f" [{units[j]}{per}]" if units[j] else ""
+            ax.plot(t, planned, color="C0", lw=1.5, label="planned")
+            ax.plot(t, tracked, color="C3", lw=1, ls="--", label="tracked")
+            ax.set_ylabel(f"{names[j]} {what}{unit}", fontsize=8)
+            ax.set_xlabel("t [s]", fontsize=8)
+            ax.grid(alpha=0.3)
+            handles, labels = ax.get_legend_handles_labels()
+            if error:
+                twin = ax.twinx()
+                twin.plot(t, tracked - planned, color="0.6", lw=0.5, alpha=0.7, label="error (tracked − planned)")
+                twin.set_ylabel(f"error{unit}", fontsize=8, color="0.4")
+                ax.set_zorder(twin.get_zorder() + 1)  # the profiles above the error
+                ax.patch.set_visible(False)
+                h2, l2 = twin.get_legend_handles_labels()
+                handles, labels = handles + h2, labels + l2
+            ax.legend(handles, labels, fontsize=7, loc="upper right")
+            ax.set_title(f"{names[j]} {what}: max |error| = {np.max(np.abs(tracked - planned)):.3g}{unit}",
+                         fontsize=9)
+    fig.suptitle(title or "servo tracking")
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def plot_sensitivities(explanation: dict, path, *, title: str = "") -> Path:
+    """The marginal value of each binding limit of a plan (:func:`dockjax.plan.explain`): one
+    bar per limit, ``d objective / d limit`` scaled to a 1 % change of the limit (objective
+    units), the finite-difference check as a marker where present."""
+    rows = explanation.get("binding", [])
+    fig, ax = _axes(figsize=(6.5, 1.2 + 0.5 * max(len(rows), 1)))
+    unit = "s" if explanation.get("objective") == "T_s" else "jerk"
+    if rows:
+        y = np.arange(len(rows))
+        ax.barh(y, [0.01 * r["sensitivity"] * r["value"] for r in rows], color="C0",
+                label="from the optimum's multipliers")
+        fd = [(i, 0.01 * r["finite_difference"] * r["value"]) for i, r in enumerate(rows) if "finite_difference" in r]
+        if fd:
+            ax.plot([v for _, v in fd], [i for i, _ in fd], "k|", ms=16, mew=2, label="re-planned ± 1 %")
+        ax.set_yticks(y, [r["limit"] for r in rows])
+        ax.axvline(0.0, color="0.3", lw=0.8)
+        ax.legend(fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no limit binds", ha="center", va="center", transform=ax.transAxes)
+        ax.set_yticks([])
+    ax.set_xlabel(f"change of the {'shortest time' if unit == 's' else 'jerk objective'} for +1 % of the limit "
+                  f"[{unit}]")
+    ax.set_title(title or "what each binding limit is worth", fontsize=10)
+    ax.grid(alpha=0.3, axis="x")
+    fig.tight_layout()
     return save(fig, path)

@@ -33,10 +33,11 @@ recompile).
   (it wins under Deb's constraint-domination, conventions §6) and the lowest-jerk one is kept.
   A point for which nothing qualifies is returned unchanged with ``improved`` False.
 
-:func:`best_known_front` is an ε-constraint sweep over ``T`` in ``[6 h_lo, 6 h_hi]`` with the
-same machinery, started from straight-line trajectories with equal intervals (and a few
-randomly perturbed starts). It never sees any optimiser's front: it depends only on the
-problem, so it is an independent yardstick for the optimisers' fronts.
+:func:`best_known_front` is an ε-constraint sweep over ``T`` from the shortest feasible time
+to ``6 h_hi``: anchors solved by sequential quadratic programming (:mod:`dockjax.solve`) and
+a dense set of caps polished from them by the same machinery as :func:`refine`. It never
+sees any optimiser's front: it depends only on the problem, so it is an independent
+yardstick for the optimisers' fronts.
 
 Everything runs in float64 inside ``jax.enable_x64(True)``.
 """
@@ -63,6 +64,8 @@ from .limits import columns, maxima, maxima_screened
 from .metrics import nondominated_points
 from .objectives import mean_square_jerk
 from .problem import DockingProblem, bucket_rows, pad_rows
+from .solve import least_jerk_front, straight_line
+from .solve import shortest as shortest_time
 
 __all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
 
@@ -345,69 +348,56 @@ def refine(
     )
 
 
-def straight_line(problem: DockingProblem, T) -> np.ndarray:
-    """Decision vectors (len(T), n_var) of straight-line trajectories with equal intervals
-    ``T/6`` (interior control points evenly spaced from start to goal, conventions §3)."""
-    T = np.atleast_1d(np.asarray(T, dtype=np.float64))
-    h = np.repeat(T[:, None] / config.N_INTERVALS, config.N_INTERVALS, 1)
-    if problem.reduced:
-        return h
-    i = np.arange(1, config.N_FREE + 1)[:, None] / 6.0
-    free = (problem.start + i * (problem.goal - problem.start)).ravel()
-    return np.concatenate([h, np.tile(free, (T.size, 1))], 1)
-
-
 def best_known_front(
     problem: DockingProblem,
     *,
-    n_points: int = 20,
-    n_perturbed: int = 2,
-    perturbation: float = 0.05,
-    steps: int = 300,
+    n_points: int = 150,
+    n_exact: int = 20,
+    line: bool = False,
+    steps: int = 600,
     learning_rate: float = 0.05,
     penalty: float = 10.0,
     margin: float = 1e-4,
-    seed: int = 0,
     rows: int | None = None,
 ) -> FrontResult:
-    """ε-constraint sweep: for ``n_points`` time caps evenly spaced in ``[6 h_lo, 6 h_hi]``
-    minimise jerk subject to ``T ≤ cap`` and the limits, from the straight line with equal
-    intervals ``cap/6`` and ``n_perturbed`` random perturbations of it (uniform noise of
-    ``± perturbation`` of the box width on the interior control points, the intervals
-    jittered at fixed sum). All starts are polished in one batch by the machinery of
-    :func:`refine`. Returns the feasible non-dominated points found.
+    """An ε-constraint sweep of T from the shortest feasible time to ``6 h_hi``.
 
-    Computed from the problem alone, without seeing any optimiser's front. ``rows`` as in
-    :func:`refine`.
+    1. The shortest time, and the least jerk at ``n_exact`` caps from it to ``6 h_hi``
+       (quadratically spaced: dense where the front is steep), by sequential quadratic
+       programming (:func:`dockjax.solve.shortest`, :func:`dockjax.solve.least_jerk_front`;
+       by continuation, and with ``line`` from the straight line too): the anchors.
+    2. ``n_points`` caps evenly spaced over the same range, each started from the anchor
+       just below it slowed to the cap (feasible, by exact time scaling) and polished in one
+       batch by the machinery of :func:`refine` (``steps``, ``learning_rate``, ``penalty``,
+       ``margin``, ``rows`` as there): a dense front at the anchors' quality.
+
+    Returns the kernel-feasible non-dominated points of both, sorted by T; ``targets`` the
+    caps of step 2. Computed from the problem alone, without seeing any optimiser's front.
     """
     _check_common(problem, steps, learning_rate, penalty, margin)
     _check_rows(rows)
     checks.integer("n_points", n_points, 2)
-    checks.integer("n_perturbed", n_perturbed, 0)
-    checks.number("perturbation", perturbation, 0.0, 0.5)
+    checks.integer("n_exact", n_exact, 2)
     t0 = time.perf_counter()
-    h_lo, h_hi = problem.interval_bounds
     n = config.N_INTERVALS
-    targets = np.linspace(n * h_lo, n * h_hi, int(n_points))
-    rng = np.random.default_rng(seed)
-    starts, caps = [], []
-    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
-    for k in range(int(n_perturbed) + 1):
-        X = straight_line(problem, targets)
-        if k > 0:
-            w = hi - lo
-            noise = rng.uniform(-perturbation, perturbation, X.shape) * w
-            noise[:, :n] -= noise[:, :n].mean(1, keepdims=True)  # keep Σ h
-            X = np.clip(X + noise, lo, hi)
-        starts.append(X)
-        caps.append(targets)
-    X = np.concatenate(starts)
-    cap = np.concatenate(caps)
-    _, _, jb, xb, fb, gb, _ = _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input=True,
+    shortest = shortest_time(problem, straight_line(problem, [n * problem.interval_bounds[0]])[0])
+    if shortest is None:
+        raise ValueError("no trajectory of the decision box meets the limits")
+    t_max = n * problem.interval_bounds[1]
+    caps = shortest.F[0] + (t_max - shortest.F[0]) * np.linspace(0.0, 1.0, int(n_exact) + 1)[1:] ** 2
+    anchors = [shortest] + least_jerk_front(problem, shortest, caps, line=line)
+    TA = np.array([a.F[0] for a in anchors])
+    XA = np.array([a.x for a in anchors])
+    targets = np.linspace(shortest.F[0], t_max, int(n_points))
+    k = np.clip(np.searchsorted(TA, targets, side="right") - 1, 0, len(TA) - 1)
+    X = XA[k].copy()
+    X[:, :n] *= (targets / TA[k])[:, None]
+    X = np.clip(X, problem.lower, problem.upper)
+    _, _, jb, xb, fb, gb, _ = _run(problem, X, targets, steps, learning_rate, penalty, margin, keep_input=True,
                                    rows=rows)
     ok = np.isfinite(jb) & np.all(gb <= 0, 1)
-    Xf = xb[ok]
-    Ff, Gf = _evaluate(problem, Xf, rows) if len(Xf) else (fb[ok], gb[ok])  # the kernel's word
+    Xf = np.concatenate([XA, xb[ok]])
+    Ff, Gf = _evaluate(problem, Xf, rows)  # the kernel's word
     feas = np.all(Gf <= 0, 1)
     Xf, Ff, Gf = Xf[feas], Ff[feas], Gf[feas]
     _, order = nondominated_points(Ff, return_index=True)  # distinct, sorted by T
@@ -415,7 +405,7 @@ def best_known_front(
                        seconds=time.perf_counter() - t0)
 
 
-BEST_KNOWN_FORMAT = 2
+BEST_KNOWN_FORMAT = 3
 """Version of the best-known front's computation: part of the key of a cached front."""
 
 

@@ -82,13 +82,22 @@ class Trajectory:
             raise ValueError(f"t must lie in [0, T] = [0, {self.T:.9g}] s, got [{arr.min()}, {arr.max()}]")
         return np.clip(arr, 0.0, self.T)
 
+    def _jets(self, t):
+        """Pose and joint jets at t (m,), in calls of a power-of-two number of times (at
+        least 1024; padded with the last time) so that one compiled program serves every
+        trajectory length."""
+        m = len(t)
+        size = max(1024, 1 << max(m - 1, 0).bit_length())
+        tp = np.concatenate([t, np.full(size - m, t[-1] if m else 0.0)])
+        with jax.enable_x64(True):
+            pose, joints = _jets_at(self.problem, jnp.asarray(self.x), jnp.asarray(tp))
+        return np.asarray(pose)[:m], np.asarray(joints)[:m]
+
     def _eval(self, t, derivative: int):
         if derivative not in (0, 1, 2, 3):
             raise ValueError(f"derivative must be 0, 1, 2 or 3, got {derivative!r}")
-        tt = self._times(t)
-        with jax.enable_x64(True):
-            pose, joints = _jets_at(self.problem, jnp.asarray(self.x), jnp.asarray(tt))
-            return np.asarray(pose[..., derivative]), np.asarray(joints[..., derivative])
+        pose, joints = self._jets(self._times(t))
+        return pose[..., derivative], joints[..., derivative]
 
     def pose(self, t, derivative: int = 0) -> np.ndarray:
         """Pose ``[x, y, z, α, β, γ]`` (or its ``derivative``-th time derivative) at t: (m, 6)."""
@@ -112,9 +121,7 @@ class Trajectory:
         """Samples at :meth:`sample_times`: ``t`` (m,), ``pose`` (m, 6) and, per joint,
         ``position``, ``velocity``, ``acceleration``, ``jerk`` (m, 8)."""
         t = self.sample_times(rate)
-        with jax.enable_x64(True):
-            pose, joints = _jets_at(self.problem, jnp.asarray(self.x), jnp.asarray(t))
-        pose, joints = np.asarray(pose), np.asarray(joints)
+        pose, joints = self._jets(t)
         out = {"t": t, "pose": pose[..., 0]}
         for k, name in enumerate(("position", "velocity", "acceleration", "jerk")):
             out[name] = joints[..., k]
@@ -132,8 +139,8 @@ class Trajectory:
         s = self.sample(rate)
         per_joint = np.stack([s["position"], s["velocity"], s["acceleration"], s["jerk"]], -1)
         table = np.concatenate([s["t"][:, None], s["pose"], per_joint.reshape(len(s["t"]), -1)], 1)
-        lines = [",".join(self.csv_header())]
-        lines += [",".join(f"{v:.17g}" for v in row) for row in table]
+        row = ",".join(["%.17g"] * table.shape[1])
+        text = "\n".join([",".join(self.csv_header()), *(row % tuple(r) for r in table.tolist())]) + "\n"
         path = Path(path)
-        atomic_write_text(path, "\n".join(lines) + "\n")
+        atomic_write_text(path, text)
         return path

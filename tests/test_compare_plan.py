@@ -170,7 +170,10 @@ def test_plan_writes_four_files_and_a_controller_ready_csv(plan_out):
     assert np.max(np.abs(fd - joints[1:-2, :, 1]) / scale) < 1e-3
     for name, j in summary["joints"].items():
         assert j["velocity_margin"] >= 0 and j["acceleration_margin"] >= 0 and j["travel_margin"] >= 0
-    assert summary["settings"]["refine_steps"] == 300
+    assert summary["settings"]["method"] == "direct"
+    assert summary["T_s"] >= summary["settings"]["shortest_T_s"] - 1e-9
+    assert set(summary["explanation"]) >= {"objective", "binding"}
+    assert _is_png(plan_out / "limits.png")
 
 
 def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path):
@@ -195,6 +198,9 @@ def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path)
         (["--limits", "/nonexistent/limits.toml"], "limits"),
         (["--weights", "-1", "1"], "weights"),
         (["--devices", "0"], "devices"),
+        (["--n-front", "1"], "n-front"),
+        (["--rate", "1e9"], "rate"),
+        (["--method", "simplex"], "method"),
     ],
 )
 def test_plan_bad_input_exits_2_and_writes_nothing(tmp_path, args, needle):
@@ -217,7 +223,7 @@ def test_python_api_returns_the_certified_trajectory_as_arrays():
     from dockjax.plan import plan
 
     # the CLI test's settings: the same compiled run, reused through the persistent cache
-    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine_steps=0)
+    p = plan(weights=(1, 0), method="imocs", pop_size=16, n_iter=8, rate=50, refine_steps=0)
     assert p.samples["position"].shape == (len(p.samples["t"]), 8)
     assert math.isclose(p.samples["t"][-1], p.T)
 
@@ -228,12 +234,60 @@ def test_write_plan_labels_the_front_with_the_algorithm_that_made_it(tmp_path, m
     from dockjax import plots
     from dockjax.plan import plan, write_plan
 
-    p = plan(weights=(1, 0), pop_size=16, n_iter=8, rate=50, refine_steps=0)  # as the test above
+    p = plan(weights=(1, 0), method="imocs", pop_size=16, n_iter=8, rate=50, refine_steps=0)  # as above
     labels = []
     real = plots.plot_fronts
     monkeypatch.setattr(plots, "plot_fronts",
                         lambda fronts, *a, **k: labels.append(list(fronts)) or real(fronts, *a, **k))
-    for algorithm, steps, want in (("nsga2", 0, "nsga2"), ("mopso", 300, "mopso+refine")):
-        write_plan(dataclasses.replace(p, settings={**p.settings, "algorithm": algorithm, "refine_steps": steps}),
+    for algorithm, steps, want in (("nsga2", 0, "nsga2"), ("mopso", 300, "mopso+refine"),
+                                   ("direct", 0, "least-jerk front (SQP)")):
+        write_plan(dataclasses.replace(p, settings={**p.settings, "method": algorithm, "refine_steps": steps}),
                    tmp_path / algorithm)
         assert labels[-1] == [want]
+
+
+def test_plan_explain_prints_the_binding_limits_with_their_checks(tmp_path):
+    out = tmp_path / "out"
+    r = _run([str(SCRIPT), "plan", "--select", "time", "--interval-bounds", "0.5", "10", "--explain",
+              "--rate", "200", *ONE_DEVICE, "--out", str(out)])
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "binding limits" in r.stdout and "d_L3 velocity" in r.stdout and "re-planned" in r.stdout
+    why = json.loads((out / "summary.json").read_text())["explanation"]
+    row = next(b for b in why["binding"] if b["limit"] == "d_L3 velocity")
+    assert row["sensitivity"] < 0
+    assert row["sensitivity"] == pytest.approx(row["finite_difference"], rel=0.02)
+
+
+def test_plan_limit_of_zero_exits_2(tmp_path):
+    limits = tmp_path / "limits.json"
+    limits.write_text(json.dumps({"acceleration": [100, 100, 0, 240]}))
+    r = _run([str(SCRIPT), "plan", "--limits", str(limits), "--out", str(tmp_path / "out")])
+    assert r.returncode == 2 and "acceleration" in r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_track_reproduces_the_papers_x_move_and_writes_its_files(tmp_path):
+    out = tmp_path / "tr"
+    r = _run([str(SCRIPT), "track", "--move", "x", "--rate", "200", "--out", str(out)])
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads((out / "tracking.json").read_text())
+    assert report["paper"] == {"joint": "d_L3", "max_position_error_mm": 0.014, "max_velocity_error_mm_s": 0.465}
+    j = report["joints"]
+    assert 0 < j["d_L3"]["max_position_error"] < 0.05 and 0 < j["d_L3"]["max_velocity_error"] < 1
+    assert j["d_L2"]["max_position_error"] < 1e-9  # the lift joint does not move
+    data = np.loadtxt(out / "tracking.csv", delimiter=",", skiprows=1)
+    header = (out / "tracking.csv").read_text().splitlines()[0].split(",")
+    k = header.index("d_L3 planned")
+    assert data[0, k] == pytest.approx(-4.04) and data[-1, k] == pytest.approx(1.514)
+    assert np.max(np.abs(data[:, k + 1] - data[:, k])) == pytest.approx(j["d_L3"]["max_position_error"], rel=1e-6)
+    assert _is_png(out / "tracking.png")
+
+
+@pytest.mark.parametrize("args, needle", [(["--bandwidth", "500"], "unstable"), (["--rate", "0"], "rate"),
+                                          (["--move", "custom"], "--start"), (["--mass", "-1"], "mass")])
+def test_track_bad_input_exits_2_and_writes_nothing(tmp_path, args, needle):
+    out = tmp_path / "tr"
+    r = _run([str(SCRIPT), "track", *args, "--out", str(out)])
+    assert r.returncode == 2, (r.returncode, r.stderr[-800:])
+    assert needle in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()

@@ -89,7 +89,7 @@ def test_refine_raises_hypervolume_of_short_imocs_run(problem, imocs_front, refi
 
 
 def test_best_known_front_is_feasible_and_beats_short_imocs(problem, imocs_front):
-    front = best_known_front(problem, n_points=6, n_perturbed=0, steps=STEPS)
+    front = best_known_front(problem, n_points=6, n_exact=3, steps=STEPS)
     assert len(front.F) >= 3
     F, G = problem.evaluate(front.X)
     np.testing.assert_allclose(F, front.F, rtol=1e-12)

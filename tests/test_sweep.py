@@ -289,7 +289,7 @@ def test_best_known_reference_is_computed_once_per_problem_and_recorded(tmp_path
     (tiny settings here), recorded in the folder; a second study of the same problem reuses it."""
     from dockjax import config
 
-    monkeypatch.setattr(config, "BEST_KNOWN", dict(n_points=4, n_perturbed=0, steps=5))
+    monkeypatch.setattr(config, "BEST_KNOWN", dict(n_points=4, n_exact=2, steps=5))
     monkeypatch.setenv("DOCKJAX_FRONTS", str(tmp_path / "fronts"))
     args = [a for a in TINY if a not in ("--reference", "pilot")]
     assert _main([*args, "--out", str(tmp_path / "a")]) == 0

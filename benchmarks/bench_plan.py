@@ -1,0 +1,190 @@
+"""Plans on the default move beside ruckig and toppra, and warm replanning.
+
+    python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--figure docs/figures/plan_peers.png]
+
+The default start and goal with paper Table 2 limits, knot intervals in [0.5, 10] s (the
+``wide`` preset, where time is limited by the joints rather than by the box). Rows:
+
+* dockjax, shortest time: :func:`dockjax.plan.plan` with weights (1, 0) (SQP on the spline
+  family), and the compromise plan with weights (1, 1);
+* ruckig (time-optimal, jerk-limited, per joint, time-synchronised), in joint space from the
+  start's joints to the goal's, with a jerk limit of 1e6 (practically unlimited): the
+  shortest time; and at dockjax's compromise T (``minimum_duration``), the least jerk
+  objective over jerk limits from 1 to 1e6 (log grid);
+* toppra (time-optimal path parametrisation, velocity and acceleration limits) along the
+  straight pose line mapped to the joints (201 waypoints, a cubic spline through them; the
+  timed call builds the spline and solves).
+
+For each: T, the jerk objective of Eq. 25 (sampled at 10 kHz for the peers: the mean square
+of each joint's third derivative by finite differences of the sampled acceleration), the
+largest ratio of |velocity| and |acceleration| to its limit (sampled), and the median time
+per call (warm). Then a :class:`dockjax.plan.Planner` replans ``--replans`` random start and
+goal poses (the defaults ± 5 mm, ± 0.1°, ± 1° roll): median and largest time per call, and
+the largest gap of its jerk to the least jerk found at the same T from the straight line and
+from the planner's own answer (:func:`dockjax.solve.least_jerk`). The front figure shows the
+best-known front with every peer's point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dockjax import config, plots
+from dockjax.kinematics import inverse_kinematics
+from dockjax.plan import Planner, plan
+from dockjax.problem import DockingProblem, make_problem
+from dockjax.refine import best_known_front
+from dockjax.solve import least_jerk
+
+RATE = 10_000.0
+
+
+def _median_time(fn, repeats):
+    out, times = None, []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return out, float(np.median(times))
+
+
+def _sampled_scores(t, q, v, a, limits):
+    """T, Eq. 25 jerk objective, max |v|/limit, max |a|/limit of sampled joints (m, 8)."""
+    T = float(t[-1])
+    dt = np.diff(t)
+    j = np.diff(a, axis=0) / dt[:, None]
+    ms = np.sum(j ** 2 * dt[:, None], 0) / T
+    return T, float(np.sum(np.sqrt(ms))), float(np.max(np.abs(v) / limits[:, 1])), \
+        float(np.max(np.abs(a) / limits[:, 2]))
+
+
+def _ruckig(q0, q1, limits, jerk_limit, duration=None):
+    import ruckig
+
+    n = len(q0)
+    inp = ruckig.InputParameter(n)
+    inp.current_position, inp.target_position = list(q0), list(q1)
+    inp.current_velocity = inp.current_acceleration = [0.0] * n
+    inp.target_velocity = inp.target_acceleration = [0.0] * n
+    inp.max_velocity, inp.max_acceleration = list(limits[:, 1]), list(limits[:, 2])
+    inp.max_jerk = [float(jerk_limit)] * n
+    if duration is not None:
+        inp.minimum_duration = float(duration)
+    traj = ruckig.Trajectory(n)
+    ruckig.Ruckig(n).calculate(inp, traj)
+    return traj
+
+
+def _ruckig_samples(traj):
+    t = np.arange(0.0, traj.duration, 1.0 / RATE)
+    t = np.append(t, traj.duration)
+    pva = [traj.at_time(float(s)) for s in t]
+    q, v, a = (np.array([p[k] for p in pva]) for k in range(3))
+    return t, q, v, a
+
+
+def _straight_joint_path(problem, n=201):
+    """Waypoints (n, 8) of the straight pose line from start to goal, mapped to the joints."""
+    s = np.linspace(0.0, 1.0, n)
+    poses = problem.start + s[:, None] * (problem.goal - problem.start)
+    return s, np.asarray(inverse_kinematics(poses, problem.arm_distance))
+
+
+def _toppra(waypoints, limits):
+    import toppra as ta
+    import toppra.algorithm as algo
+    import toppra.constraint as constraint
+
+    ta.setup_logging("WARNING")
+    path = ta.SplineInterpolator(*waypoints)
+    cons = [constraint.JointVelocityConstraint(limits[:, 1]),
+            constraint.JointAccelerationConstraint(limits[:, 2])]
+    return algo.TOPPRA(cons, path, parametrizer="ParametrizeConstAccel").compute_trajectory()
+
+
+def _toppra_samples(traj):
+    t = np.append(np.arange(0.0, traj.duration, 1.0 / RATE), traj.duration)
+    return t, traj(t), traj(t, 1), traj(t, 2)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--replans", type=int, default=20)
+    ap.add_argument("--figure", type=Path, default=None, help="write the front with the peers' points here")
+    args = ap.parse_args()
+    if args.repeats < 1 or args.replans < 1:
+        ap.error("--repeats and --replans must be >= 1")
+    problem = make_problem("wide")
+    lim = np.asarray(problem.limits)
+    q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))
+    q1 = np.asarray(inverse_kinematics(problem.goal, problem.arm_distance))
+    rows = []
+
+    def dockjax_row(label, weights):
+        plan(problem, weights=weights, check_sensitivities=False)  # compile
+        p, dt = _median_time(lambda: plan(problem, weights=weights, check_sensitivities=False), args.repeats)
+        g = p.problem.evaluate(p.x[None])[1][0].reshape(8, 3)
+        rows.append((label, p.T, p.jerk, float(np.max(g[:, 1] + 1)), float(np.max(g[:, 2] + 1)), dt))
+        return p
+
+    dockjax_row("dockjax, shortest time (SQP)", (1.0, 0.0))
+    p_comp = dockjax_row("dockjax, compromise (1, 1)", (1.0, 1.0))
+    traj, dt = _median_time(lambda: _ruckig(q0, q1, lim, 1e6), args.repeats)
+    rows.append(("ruckig, shortest time (jerk limit 1e6)", *_sampled_scores(*_ruckig_samples(traj), lim), dt))
+    best = None
+    for jl in np.geomspace(1.0, 1e6, 25):
+        traj = _ruckig(q0, q1, lim, jl, duration=p_comp.T)
+        if abs(traj.duration - p_comp.T) > 1e-6 * p_comp.T:
+            continue
+        sc = _sampled_scores(*_ruckig_samples(traj), lim)
+        if best is None or sc[1] < best[0][1]:
+            best = (sc, jl)
+    if best is not None:
+        _, dt = _median_time(lambda: _ruckig(q0, q1, lim, best[1], duration=p_comp.T), args.repeats)
+        rows.append((f"ruckig at the compromise T (jerk limit {best[1]:.3g})", *best[0], dt))
+    waypoints = _straight_joint_path(problem)
+    _toppra(waypoints, lim)
+    out, dt = _median_time(lambda: _toppra(waypoints, lim), args.repeats)
+    rows.append(("toppra, straight joint path", *_sampled_scores(*_toppra_samples(out), lim), dt))
+
+    print(f"default move, Table 2 limits, intervals in {problem.interval_bounds} s; median of {args.repeats} warm "
+          f"calls\n")
+    print("| method | T [s] | jerk (Eq. 25) | max v/limit | max a/limit | time per call |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for label, T, J, rv, ra, dt in rows:
+        print(f"| {label} | {T:.3f} | {J:.4g} | {rv:.4f} | {ra:.4f} | {dt * 1e3:.3g} ms |")
+    print(f"\nlateral joint floor (30 mm at 2.5 mm/s, 100 mm/s²): {30 / 2.5 + 2.5 / 100:.3f} s")
+
+    # warm replanning
+    planner = Planner(DockingProblem())
+    planner.plan()
+    rng = np.random.default_rng(0)
+    half = np.array([5, 5, 5, 0.1, 0.1, 1.0])
+    times, gaps = [], []
+    for _ in range(args.replans):
+        s = np.asarray(config.START) + rng.uniform(-1, 1, 6) * half
+        g = np.asarray(config.GOAL) + rng.uniform(-1, 1, 6) * half
+        t = time.perf_counter()
+        p = planner.plan(s, g, weights=(1.0, 1.0))
+        times.append(time.perf_counter() - t)
+        ref = least_jerk(p.problem, p.T, [p.x])
+        gaps.append(p.jerk / ref.F[1] - 1.0)
+    print(f"\nPlanner (default problem), {args.replans} random start/goal poses, weights (1, 1): "
+          f"median {np.median(times) * 1e3:.1f} ms, largest {np.max(times) * 1e3:.1f} ms per plan; "
+          f"jerk above the least jerk at its T by at most {100 * max(gaps):.2g} %")
+
+    if args.figure is not None:
+        front = best_known_front(problem, n_points=40)
+        peers = {label: np.array([[T, J]]) for label, T, J, *_ in rows}
+        plots.plot_fronts(peers, args.figure, reference=front.F, reference_label="dockjax best-known front",
+                          title="default move, Table 2 limits: dockjax's front and the peers")
+        print(f"wrote {args.figure}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,422 @@
+"""Single-trajectory optimal control by sequential quadratic programming (conventions §3, §5, §6).
+
+Two nonlinear programmes over one decision vector ``x`` (n_var,), both solved by SciPy's
+SLSQP with values and Jacobians from one jitted JAX function (float64):
+
+* **shortest time** (:func:`min_time`): minimise ``T(x) = Σ h_k`` subject to the limits;
+* **least jerk at a time** (:func:`min_jerk`): minimise the jerk objective (Eq. 25)
+  subject to ``T(x) ≤ T_cap`` and the limits.
+
+The limits enter at every critical time (:func:`candidate_limits`): per knot span and
+joint, the travel, velocity and acceleration at the span's ends and at the roots of the
+next derivative, 15 values, each its own smooth constraint (720 in all). A column whose
+maximum is reached at several times (as at a time-optimal solution, where a velocity rides
+its limit) is then several smooth constraints rather than one kinked maximum. Their
+gradients follow the envelope theorem (the critical times carry no derivative, see
+:func:`dockjax.extrema.chain_extrema`); the right arm uses the ``"bound"`` treatment's
+remainder, which never understates (conventions §6).
+
+The solver works in the unit box ``x = lower + u (upper − lower)``. Its answer is then
+**certified** by :func:`certify_scaling`: the kernel's own columns (never understated in any
+right-arm treatment) decide, and a trajectory that misses a rate limit by the solver's
+tolerance is slowed by the exact time scaling ``h → s h`` (velocities scale by ``1/s``,
+accelerations by ``1/s²``, travel is unchanged), so every returned trajectory is feasible.
+
+The Lagrange multipliers of the active constraints give the sensitivities of the optimum to
+each limit (:func:`sensitivities`, the envelope theorem): ``d f*/d L = Σ_i λ_i ∂g_i/∂L``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy.optimize import minimize
+
+from . import config, extrema
+from .bspline import poly_derivative, poly_eval
+from .decoding import decode, span_angles
+from .fusion import materialize
+from .limits import joint_series
+from .objectives import mean_square_jerk
+from .problem import DockingProblem
+from .right_arm import linearisation_remainders
+
+__all__ = ["Solution", "candidate_limits", "critical_times", "straight_line", "least_jerk", "least_jerk_front",
+           "map_to", "min_time", "min_jerk", "shortest", "certify_scaling", "sensitivities", "time_scale"]
+
+
+N_CANDIDATES = config.N_INTERVALS * 8 * 15
+"""Limit constraints of the programmes: 15 critical values per knot span and joint."""
+
+
+@dataclass(frozen=True)
+class Solution:
+    """One solved programme. ``x`` (n_var,) certified (kernel-feasible), ``F`` (2,) its
+    (T, jerk), ``G`` (24,) its kernel columns; ``multipliers`` (6, 24) the Lagrange
+    multipliers of the span constraints at the solver's point (objective scaled as in
+    ``objective_scale``), ``scaled`` the time scaling applied to certify (1.0: none),
+    ``cap_multiplier`` that of the time cap (jerk programme; ``d jerk*/d T = −scale · it``),
+    ``iterations`` SLSQP's, ``success`` SLSQP's own verdict, ``message`` its message."""
+
+    x: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    x_solver: np.ndarray
+    multipliers: np.ndarray
+    cap_multiplier: float
+    objective_scale: float
+    scaled: float
+    iterations: int
+    success: bool
+    message: str
+
+
+# -- the programmes' functions (jitted once per problem shape) ---------------------------------
+
+
+def _safe_sqrt(v):
+    pos = v > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, v, 1.0)), 0.0)
+
+
+QUANTITY_OF_CANDIDATE = np.array([0] * 6 + [1] * 5 + [2] * 4)
+"""The quantity (0 travel, 1 velocity, 2 acceleration) of each of the 15 candidate
+values per span and joint of :func:`candidate_limits`."""
+
+
+def critical_times(problem: DockingProblem, x):
+    """The critical times of :func:`candidate_limits` at x: per span and joint the travel's
+    (6), the velocity's (5) and the acceleration's (4) candidate times ``τ ∈ [0, h]`` of
+    :func:`dockjax.extrema.chain_extrema`, each with a flag that it is the span's end."""
+    h, _, c = decode(problem, x)
+    ref = materialize(span_angles(c, h))
+    polys = joint_series(problem, c, h, ref)
+    hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
+    (tt, _), (vt, _), at = extrema.chain_extrema(jax.lax.stop_gradient(polys), jax.lax.stop_gradient(hh))
+    return tuple((t, t == hh[..., None]) for t in (tt, vt, at))
+
+
+def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
+    """The limit constraints at every critical time, x (n_var,) → (6 spans, 8 joints, 15).
+
+    Per span and joint: the travel at the span's ends and the roots of the velocity (6
+    values), the velocity at the ends and the roots of the acceleration (5), the
+    acceleration at the ends and the roots of the jerk (4) (:func:`critical_times`), each
+    as ``(q/L)² − (1 − r/L)² ≤ 0`` with ``r`` the right arm's linearisation remainder (0
+    elsewhere): smooth in x (the interior times carry no derivative, envelope theorem; a
+    span's end moves with its interval), and ``max ≤ 0`` over the 15 is the kernel's
+    ``"bound"`` feasibility up to the roots' certified widths. ``limits`` (8, 3) replaces
+    the problem's (for derivatives in them); ``times`` (:func:`critical_times`, default
+    at x) holds the times fixed, so that derivatives need not trace the root searches."""
+    L = problem.limits if limits is None else limits
+    times = critical_times(problem, x) if times is None else times
+    h, _, c = decode(problem, x)
+    ref = materialize(span_angles(c, h))
+    polys = materialize(joint_series(problem, c, h, ref))  # (6, 8, 6)
+    hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
+    vals = [poly_eval(poly_derivative(polys, k)[..., None, :] if k else polys[..., None, :],
+                      jnp.where(end, hh[..., None], jax.lax.stop_gradient(t)))
+            for k, (t, end) in enumerate(times)]
+    rem = linearisation_remainders(problem, c, h, ref)  # (6, 3, 3)
+    extra = jnp.zeros(polys.shape[:2] + (3,), polys.dtype).at[:, 4:7].set(rem)
+    out = [(v / L[:, k, None]) ** 2 - (1.0 - extra[..., k, None] / L[:, k, None]) ** 2 for k, v in enumerate(vals)]
+    return jnp.concatenate(out, -1)
+
+
+def _jerk(problem, x):
+    h, _, c = decode(problem, x)
+    ref = materialize(span_angles(c, h))
+    return jnp.sum(_safe_sqrt(mean_square_jerk(problem, c, h, ref)))
+
+
+_jerk_value = jax.jit(_jerk)
+
+
+def _x_of(problem, u):
+    lo = problem.lower
+    return lo + u * (problem.upper - lo)
+
+
+@jax.jit
+def _values(problem, u, scale, time_weight):
+    """Objective ``(w T + (1 − w) jerk) / scale`` (w = ``time_weight``, 1 or 0: one compiled
+    programme serves both programmes), its gradient, the constraints (720,) and their
+    Jacobian (720, d), in the unit-box coordinates u."""
+
+    def f(u):
+        x = _x_of(problem, u)
+        return (time_weight * jnp.sum(x[: config.N_INTERVALS]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
+
+    times = critical_times(problem, _x_of(problem, u))  # held: the root searches are not differentiated
+
+    def g(u):
+        return candidate_limits(problem, _x_of(problem, u), times=times).reshape(-1)
+
+    fv, fg = jax.value_and_grad(f)(u)
+    # the Jacobian in forward mode, one tangent per coordinate, with the value computed once
+    eye = jnp.eye(u.shape[0], dtype=u.dtype)
+    gv, gj = jax.vmap(lambda d: jax.jvp(g, (u,), (d,)), out_axes=(None, 1))(eye)
+    return fv, fg, gv, gj
+
+
+def _scores(problem, x):
+    """The kernel's F (2,) and G (24,) of one x, every span through the root chain."""
+    with jax.enable_x64(True):
+        F, G = problem.evaluate(np.asarray(x, np.float64)[None], screen=False)
+    return F[0], G[0]
+
+
+def time_scale(problem: DockingProblem, x, s: float) -> np.ndarray:
+    """``x`` with every interval multiplied by ``s`` (the same path, ``s`` times slower)."""
+    x = np.array(x, np.float64)
+    x[: config.N_INTERVALS] *= s
+    return x
+
+
+def certify_scaling(problem: DockingProblem, x, max_rounds: int = 8):
+    """The least exact time scaling ``s ≥ 1`` found by the kernel that makes x feasible.
+
+    Velocity columns scale by ``1/s`` and accelerations by ``1/s²`` exactly, travel not at
+    all; s starts from the kernel's columns and grows by a hair until the kernel (never
+    understated) says feasible. → ``(x_scaled, F, G, s)``, or ``None`` when a travel limit
+    fails or the scaled intervals leave the decision box."""
+    x = np.asarray(x, np.float64)
+    F, G = _scores(problem, x)
+    s = 1.0
+    for _ in range(max_rounds):
+        if np.all(G <= 0):
+            return x, F, G, s
+        G3 = G.reshape(8, 3)
+        if np.any(G3[:, 0] > 0):
+            return None
+        need = max(1.0, float(np.max(G3[:, 1] + 1.0)), float(np.sqrt(np.max(G3[:, 2] + 1.0))))
+        step = need * (1.0 + 1e-9)
+        s *= step
+        x = time_scale(problem, x, step)
+        if np.any(x[: config.N_INTERVALS] > problem.upper[: config.N_INTERVALS]):
+            return None
+        F, G = _scores(problem, x)
+    return (x, F, G, s) if np.all(G <= 0) else None
+
+
+RESTARTS = 3
+"""Fresh SLSQP starts from the last point when a solve ends without converging."""
+
+
+def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS):
+    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
+    width = hi - lo
+    u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, 1.0)
+    n = config.N_INTERVALS
+    cache = {}
+
+    def values(u):
+        key = u.tobytes()
+        if key not in cache:
+            cache.clear()
+            with jax.enable_x64(True):
+                out = _values(problem, u, np.float64(scale), np.float64(kind == "time"))
+            cache[key] = tuple(np.asarray(a, np.float64) for a in out)
+        return cache[key]
+
+    cons = [{"type": "ineq", "fun": lambda u: -values(u)[2], "jac": lambda u: -values(u)[3]}]
+    if cap is not None:
+        wh = width[:n]
+        b = max(cap * (1.0 - 1e-12) - lo[:n].sum(), 0.0)  # a hair inside, never below the box
+        a = np.zeros_like(u0)
+        a[:n] = -wh
+        cons.append({"type": "ineq", "fun": lambda u: b + a @ u, "jac": lambda u: a})
+    nit = 0
+    for _ in range(1 + restarts):  # a restart renews SLSQP's curvature estimate
+        res = minimize(lambda u: values(u)[0], u0, jac=lambda u: values(u)[1], method="SLSQP",
+                       bounds=[(0.0, 1.0)] * len(u0), constraints=cons,
+                       options={"maxiter": int(max_iter), "ftol": tol})
+        nit += int(res.nit)
+        if res.success:
+            break
+        u0 = np.clip(res.x, 0.0, 1.0)
+    res.nit = nit
+    m = np.asarray(getattr(res, "multipliers", np.zeros(0)), np.float64).ravel()
+    mult = m[:N_CANDIDATES] if m.size >= N_CANDIDATES else np.zeros(N_CANDIDATES)
+    cap_mult = float(m[N_CANDIDATES]) if cap is not None and m.size > N_CANDIDATES else 0.0
+    return lo + np.clip(res.x, 0.0, 1.0) * width, res, (mult.reshape(n, 8, 15), cap_mult)
+
+
+SCALED_OK = 1e-7
+"""A solver point whose certifying time scaling exceeds ``1 + SCALED_OK`` is solved again
+from the scaled (feasible) trajectory."""
+
+
+def _finish(problem, x, res, mult, scale):
+    cert = certify_scaling(problem, x)
+    if cert is None:
+        return None
+    xc, F, G, s = cert
+    mult, cap_mult = mult
+    return Solution(x=xc, F=np.asarray(F), G=np.asarray(G), x_solver=np.asarray(x), multipliers=mult,
+                    cap_multiplier=cap_mult, objective_scale=float(scale),
+                    scaled=float(s), iterations=int(res.nit), success=bool(res.success), message=str(res.message))
+
+
+def _solve(problem, x0, kind, cap, scale, tol, max_iter, restarts):
+    """SLSQP, certified; while the certificate had to slow the solver's point by more than
+    :data:`SCALED_OK` (SLSQP stopped slightly outside the limits), up to ``restarts`` new
+    solves from the slowed, feasible trajectory. The best certified answer is returned."""
+    best, k = None, 0 if kind == "time" else 1
+    for _ in range(1 + restarts):
+        x, res, mult = _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts)
+        sol = _finish(problem, x, res, mult, scale)
+        if sol is None:
+            break
+        if best is None or sol.F[k] < best.F[k]:
+            best = sol
+        if sol.scaled <= 1.0 + SCALED_OK:
+            break
+        x0 = sol.x
+    return best
+
+
+def min_time(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int = 200,
+             restarts: int = RESTARTS) -> Solution | None:
+    """The shortest ``T`` over trajectories meeting every limit, from ``x0`` (n_var,): SLSQP on
+    ``min Σ h`` subject to the candidate constraints (:func:`candidate_limits`), in the unit
+    box. ``x0`` is first made feasible by time scaling (:func:`certify_scaling`), so the
+    search starts inside. ``restarts``: fresh solves after a stop without convergence or
+    outside the limits. Returns None when no certified trajectory is found (travel
+    infeasible from x0)."""
+    start = certify_scaling(problem, x0)
+    if start is not None:
+        x0 = start[0]
+    scale = float(np.sum(np.asarray(x0)[: config.N_INTERVALS]))
+    return _solve(problem, x0, "time", None, scale, tol, max_iter, restarts)
+
+
+def min_jerk(problem: DockingProblem, x0, cap: float, *, tol: float = 1e-12, max_iter: int = 200,
+             restarts: int = RESTARTS) -> Solution | None:
+    """The least jerk (Eq. 25) with ``T ≤ cap`` and every limit, from ``x0`` (n_var,);
+    ``restarts`` as in :func:`min_time`. The certified answer may be slower than ``cap`` by
+    the certificate's time scaling (at most ``SCALED_OK`` unless restarts ran out)."""
+    with jax.enable_x64(True):
+        j0 = float(_jerk_value(problem, np.asarray(x0, np.float64)))
+    scale = j0 if math.isfinite(j0) and j0 > 0 else 1.0
+    return _solve(problem, x0, "jerk", float(cap), scale, tol, max_iter, restarts)
+
+
+SHORTEST_SLACK = 1e-6
+"""Relative time above the shortest that :func:`shortest` accepts for a smoother trajectory
+(the certificate's time scaling after the least-jerk solve at the shortest time)."""
+
+
+def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int = 200) -> Solution | None:
+    """The shortest time (:func:`min_time`) and, among the trajectories that take it, the
+    least jerk (:func:`min_jerk` at that cap, from the time optimum): the returned x, F and
+    G are the latter's when it is smoother and at most :data:`SHORTEST_SLACK` slower; the
+    multipliers, ``x_solver`` and so :func:`sensitivities` stay the time programme's
+    (``d T_min / d limit``). Where the interval bounds decide the time (every interval at
+    its lower bound) the shortest trajectories form a whole family, and the first
+    answer of the time programme is rarely its smoothest."""
+    sol = min_time(problem, x0, tol=tol, max_iter=max_iter)
+    if sol is None:
+        return None
+    smooth = min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=0)
+    if smooth is not None and smooth.F[1] < sol.F[1] and smooth.F[0] <= sol.F[0] * (1 + SHORTEST_SLACK):
+        sol = dataclasses.replace(sol, x=smooth.x, F=smooth.F, G=smooth.G)
+    return sol
+
+
+@jax.jit
+def _limit_gradient(problem, x, lam):
+    """``∂/∂L Σ λ g(x; L)`` over the candidate constraints, at the problem's limits (8, 3)."""
+    times = critical_times(problem, x)
+    return jax.grad(lambda L: jnp.sum(lam * candidate_limits(problem, x, L, times)))(problem.limits)
+
+
+def sensitivities(problem: DockingProblem, sol: Solution) -> np.ndarray:
+    """``d f* / d limit`` (8 joints, 3 quantities) in the objective's units per limit unit,
+    by the envelope theorem: ``Σ λ_i ∂g_i/∂L`` over the candidate constraints at the
+    solver's point, λ the SLSQP multipliers of ``sol`` (unscaled). Zero for limits that do
+    not bind. For the time programme f* is T (s); for the jerk programme the jerk."""
+    with jax.enable_x64(True):
+        lam = np.asarray(sol.multipliers * sol.objective_scale, np.float64)
+        return np.asarray(_limit_gradient(problem, np.asarray(sol.x_solver, np.float64), lam))
+
+
+def straight_line(problem: DockingProblem, T) -> np.ndarray:
+    """Decision vectors (len(T), n_var) of straight-line trajectories with equal intervals
+    ``T/6`` (interior control points evenly spaced from start to goal, conventions §3)."""
+    T = np.atleast_1d(np.asarray(T, dtype=np.float64))
+    h = np.repeat(T[:, None] / config.N_INTERVALS, config.N_INTERVALS, 1)
+    if problem.reduced:
+        return h
+    i = np.arange(1, config.N_FREE + 1)[:, None] / 6.0
+    free = (problem.start + i * (problem.goal - problem.start)).ravel()
+    return np.concatenate([h, np.tile(free, (T.size, 1))], 1)
+
+
+def least_jerk(problem: DockingProblem, cap: float, starts, *, restarts: int = 0, tol: float = 1e-12,
+               max_iter: int = 200) -> Solution | None:
+    """The lowest-jerk :func:`min_jerk` solution at ``cap`` over the start points ``starts``
+    (each (n_var,)) and the straight line with equal intervals (always tried last); then
+    up to ``restarts`` fresh solves from the best solver point (a restart renews SLSQP's
+    curvature estimate), while they lower the jerk."""
+    best = None
+    for x0 in [*starts, straight_line(problem, [cap])[0]]:
+        s = min_jerk(problem, x0, cap, tol=tol, max_iter=max_iter)
+        if s is not None and (best is None or s.F[1] < best.F[1]):
+            best = s
+    for _ in range(restarts if best is not None else 0):
+        s = min_jerk(problem, best.x_solver, cap, tol=tol, max_iter=max_iter)
+        if s is None or s.F[1] >= best.F[1] * (1 - 1e-12):
+            break
+        best = s
+    return best
+
+
+def least_jerk_front(problem: DockingProblem, shortest: Solution, caps, *, line: bool = True,
+                     tol: float = 1e-12, max_iter: int = 200, restarts: int = RESTARTS) -> list[Solution]:
+    """The least-jerk trajectory at each time cap (sorted ascending, all above the shortest
+    time), by continuation: :func:`min_jerk` from the previous cap's answer slowed to the
+    new cap (feasible, by exact time scaling), and with ``line`` also from the straight
+    line with equal intervals (:func:`least_jerk`), keeping the lower jerk. Caps where no
+    certified trajectory is found are skipped. ``max_iter`` and ``restarts`` bound each
+    continuation solve (a coarse front for a choice need not converge fully)."""
+    out, prev = [], shortest
+    for cap in np.sort(np.asarray(caps, np.float64)):
+        start = time_scale(problem, prev.x, cap / prev.F[0])
+        if line:
+            best = least_jerk(problem, cap, [start], tol=tol, max_iter=max_iter)
+        else:
+            best = min_jerk(problem, start, cap, tol=tol, max_iter=max_iter, restarts=restarts)
+            if best is None:
+                best = least_jerk(problem, cap, [], tol=tol, max_iter=max_iter)
+        if best is not None:
+            out.append(best)
+            prev = best
+    return out
+
+
+def map_to(problem: DockingProblem, template: DockingProblem, X) -> np.ndarray:
+    """Decision vectors X (n, n_var) of ``template`` carried over to ``problem`` (another
+    start and goal, the same shape): the intervals are kept and each control point keeps
+    its place relative to the straight line from start to goal, coordinate by
+    coordinate, scaled by the ratio of the moves (shifted where the template's
+    coordinate does not move). Clipped into ``problem``'s box; time scaling
+    (:func:`certify_scaling`) then restores the limits."""
+    X = np.array(X, np.float64, ndmin=2)
+    if problem.reduced:
+        return X.copy()
+    s0, d0 = np.asarray(template.start), np.asarray(template.goal) - np.asarray(template.start)
+    s1, d1 = np.asarray(problem.start), np.asarray(problem.goal) - np.asarray(problem.start)
+    n = config.N_INTERVALS
+    P = X[:, n:].reshape(len(X), config.N_FREE, config.N_POSE)
+    frac = (np.arange(1, config.N_FREE + 1) / 6.0)[:, None]
+    moves = np.abs(d0) > 1e-12 * np.maximum(1.0, np.abs(s0))
+    ratio = np.where(moves, d1 / np.where(moves, d0, 1.0), 1.0)
+    Q = np.where(moves, s1 + (P - s0) * ratio, s1 + (P - s0) + frac * (d1 - d0))
+    out = np.concatenate([X[:, :n], Q.reshape(len(X), -1)], 1)
+    return np.clip(out, problem.lower, problem.upper)

@@ -1,0 +1,155 @@
+"""Plans that are optimal, fast and explained (dockjax.solve, dockjax.plan).
+
+References written here, independent of the code under test: the per-joint bang-bang floor
+(a lower bound of any trajectory's time), SciPy SLSQP on the test's own B-spline
+(:mod:`reference`, SciPy's BSpline) with constraints at dense fixed sample times and
+finite-difference gradients, gradient refinement (:mod:`dockjax.refine`, another
+algorithm) from several starts, and the dense check of every limit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from dockjax import solve
+from dockjax.plan import Planner, plan
+from dockjax.problem import DockingProblem, make_problem
+from dockjax.refine import refine
+from tests import reference as R
+
+WIDE = make_problem("wide")
+
+
+def _floor(problem) -> float:
+    """The shortest time any trajectory can take: per joint, the bang-bang profile with the
+    velocity and acceleration limits (triangular when the move is short), the largest."""
+    q0 = R.joints_of_pose(problem.start, problem.arm_distance)
+    q1 = R.joints_of_pose(problem.goal, problem.arm_distance)
+    d = np.abs(q1 - q0)
+    v, a = problem.limits[:, 1], problem.limits[:, 2]
+    t = np.where(d >= v * v / a, d / v + v / a, 2 * np.sqrt(d / a))
+    return float(t.max())
+
+
+def _sampled_g(problem, x, per_span=40):
+    """|v|/v_lim − 1 and |a|/a_lim − 1 and travel at fixed fractions of each span (the
+    reference spline), all joints: a smooth function of x."""
+    h = x[:6]
+    edges = np.concatenate([[0.0], np.cumsum(h)])
+    frac = np.linspace(0.0, 1.0, per_span)
+    t = (edges[:-1, None] + frac * h[:, None]).ravel()
+    t = np.clip(t, 0.0, edges[-1] * (1 - 1e-15))
+    qd = R.joint_derivatives(x, problem.start, problem.goal, problem.arm_distance, t)
+    lim = problem.limits
+    return np.concatenate([((qd[0] - problem.home) / lim[:, 0]).ravel() ** 2 - 1,
+                           (qd[1] / lim[:, 1]).ravel() ** 2 - 1, (qd[2] / lim[:, 2]).ravel() ** 2 - 1])
+
+
+def _reference_min_time(problem, x0):
+    """SciPy SLSQP, finite-difference gradients, on the reference spline's sampled limits."""
+    lo, hi = problem.lower, problem.upper
+    w = hi - lo
+    res = minimize(lambda u: np.sum((lo + u * w)[:6]), (x0 - lo) / w, method="SLSQP", bounds=[(0, 1)] * len(lo),
+                   constraints=[{"type": "ineq", "fun": lambda u: -_sampled_g(problem, lo + u * w)}],
+                   options={"maxiter": 300, "ftol": 1e-10})
+    return lo + res.x * w
+
+
+def test_shortest_time_is_above_the_floor_dense_feasible_and_no_worse_than_an_independent_solver():
+    p = plan(WIDE, weights=(1.0, 0.0), check_sensitivities=False)
+    assert p.T >= _floor(WIDE) - 1e-9
+    _, ok = R.dense_check(WIDE, p.x[None], n_samples=40001)
+    assert ok.all()
+    x_ref = _reference_min_time(WIDE, R.straight_line_x(WIDE.start, WIDE.goal, (2.5,) * 6))
+    T_ref = float(np.sum(x_ref[:6]))
+    g_ref = R.dense_constraints(x_ref, WIDE.start, WIDE.goal, WIDE.arm_distance, WIDE.limits[:, 0],
+                                WIDE.limits[:, 1], WIDE.limits[:, 2], n_samples=40001)
+    T_ref_feasible = T_ref * max(1.0, np.sqrt(g_ref.reshape(8, 3)[:, 2].max() + 1), g_ref.reshape(8, 3)[:, 1].max() + 1)
+    assert p.T <= T_ref_feasible * (1 + 1e-3), (p.T, T_ref, T_ref_feasible)
+    # and the printed peers' floor: 30 mm of lateral travel at 2.5 mm/s and 100 mm/s²
+    assert _floor(WIDE) == pytest.approx(12.025, abs=1e-9)
+
+
+@pytest.mark.parametrize("preset, weights", [("wide", (1.0, 1.0)), ("paper", (1.0, 1.0))])
+def test_the_chosen_plan_has_the_least_jerk_at_its_time_within_0_1_percent(preset, weights):
+    problem = make_problem(preset)
+    p = plan(problem, weights=weights, check_sensitivities=False)
+    _, ok = R.dense_check(problem, p.x[None], n_samples=40001)
+    assert ok.all()
+    # another algorithm from several starts: projected Adam under T <= T_plan
+    starts = [R.straight_line_x(problem.start, problem.goal, (p.T / 6,) * 6)]
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        d = rng.uniform(-0.03, 0.03, 6)
+        h = p.T / 6 * (1 + d - d.mean())  # inside the box for both presets' T here
+        x = R.straight_line_x(problem.start, problem.goal, h)
+        x[6:] += rng.uniform(-0.02, 0.02, x.size - 6) * (problem.upper - problem.lower)[6:]
+        starts.append(np.clip(x, problem.lower, problem.upper))
+    r = refine(problem, np.array(starts), steps=1500)
+    best = r.F[r.feasible & (r.F[:, 0] <= p.T * (1 + 1e-12)), 1]
+    assert best.size
+    for x in r.X[r.feasible]:
+        assert R.reference_objectives(x, problem.start, problem.goal, problem.arm_distance)[0] <= p.T * (1 + 1e-9)
+    T_p, J_p = R.reference_objectives(p.x, problem.start, problem.goal, problem.arm_distance)
+    assert T_p == pytest.approx(p.T, rel=1e-12) and J_p == pytest.approx(p.jerk, rel=1e-8)
+    assert J_p <= best.min() * (1 + 1e-3), (J_p, best.min())
+
+
+def test_sensitivities_match_replanning_with_the_limit_changed_by_one_percent():
+    p = plan(WIDE, weights=(1.0, 0.0), check_sensitivities=False)
+    rows = p.explanation["binding"]
+    assert rows, "the shortest time binds at least one limit"
+    for row in rows:
+        j = ["d_L1", "d_L2", "d_L3", "theta_L", "d_R1", "d_R2", "d_R3", "theta_R"].index(row["joint"])
+        key = row["quantity"]
+        T = []
+        for f in (1.01, 0.99):
+            arr = np.array(getattr(WIDE, key), float)
+            arr[j] *= f
+            other = DockingProblem(interval_bounds=WIDE.interval_bounds, **{key: arr})
+            T.append(plan(other, weights=(1.0, 0.0), check_sensitivities=False).T)
+        fd = (T[0] - T[1]) / (0.02 * row["value"])
+        assert row["sensitivity"] == pytest.approx(fd, rel=0.02, abs=1e-3), row
+    # the compromise plan: d jerk / d T against re-planning at T ± 1 %
+    q = plan(WIDE, weights=(1.0, 1.0), check_sensitivities=True)
+    why = q.explanation
+    assert why["d_jerk_d_T"] < 0
+    assert why["d_jerk_d_T"] == pytest.approx(why["d_jerk_d_T_finite_difference"], rel=0.02)
+    for row in why["binding"]:
+        assert row["sensitivity"] == pytest.approx(row["finite_difference"], rel=0.05, abs=1e-4), row
+
+
+def test_a_limit_that_does_not_bind_has_no_value():
+    p = plan(WIDE, weights=(1.0, 0.0), check_sensitivities=False)
+    binding = {r["limit"] for r in p.explanation["binding"]}
+    assert "d_L1 velocity" not in binding  # 400 mm/s against a few mm/s
+    loose = dataclasses.replace(WIDE, velocity=np.asarray(WIDE.velocity) * np.array([2, 1, 1, 1, 1, 1, 1, 1.0]))
+    assert plan(loose, weights=(1.0, 0.0), check_sensitivities=False).T == pytest.approx(p.T, rel=1e-6)
+
+
+def test_warm_planner_certifies_new_poses_within_one_percent_of_the_least_jerk():
+    planner = Planner(DockingProblem())
+    planner.plan()
+    rng = np.random.default_rng(3)
+    half = np.array([5, 5, 5, 0.1, 0.1, 1.0])
+    for _ in range(3):
+        s = np.asarray(DockingProblem().start) + rng.uniform(-1, 1, 6) * half
+        g = np.asarray(DockingProblem().goal) + rng.uniform(-1, 1, 6) * half
+        p = planner.plan(s, g, weights=(1.0, 1.0))
+        np.testing.assert_allclose(p.problem.start, s)
+        _, ok = R.dense_check(p.problem, p.x[None], n_samples=20001)
+        assert ok.all()
+        ref = refine(p.problem, R.straight_line_x(s, g, (p.T / 6,) * 6)[None], steps=1500)
+        assert ref.feasible[0] and ref.F[0, 0] <= p.T * (1 + 1e-12)
+        assert p.jerk <= ref.F[0, 1] * 1.01
+
+
+def test_min_time_reports_none_when_travel_cannot_be_met():
+    x = solve.straight_line(WIDE, [12.0])[0]
+    x[6:] = WIDE.upper[6:]  # every interior point at the box corner: far outside d_L2's travel? not always
+    out = solve.certify_scaling(dataclasses.replace(WIDE, travel=np.full(8, 1e-3)), x)
+    assert out is None
