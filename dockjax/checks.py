@@ -12,7 +12,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["is_integer", "integer", "optional_integer", "number", "numbers", "vector", "choice"]
+__all__ = ["is_integer", "integer", "optional_integer", "number", "numbers", "vector", "choice", "real_array",
+           "boolean"]
 
 
 def is_integer(value: Any) -> bool:
@@ -72,9 +73,35 @@ def number(name: str, value: Any, lo: float = -math.inf, hi: float = math.inf, *
     return float(arr)
 
 
+def real_array(name: str, value: Any) -> np.ndarray:
+    """``value`` as a float64 array, or ValueError unless every element is a real number:
+    booleans, strings, complex numbers and other objects are refused (``True`` is not 1)."""
+    try:
+        raw = np.asarray(value)
+    except (ValueError, TypeError):
+        raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None
+    flat = raw.ravel().tolist() if raw.dtype == object else []
+    if raw.dtype.kind not in "iuf" or any(isinstance(v, (bool, np.bool_)) for v in flat):
+        kind = {"b": "booleans", "U": "strings", "S": "strings", "c": "complex numbers"}.get(raw.dtype.kind,
+                                                                                            "non-numbers")
+        raise ValueError(f"{name} must hold real numbers, got {kind}: {value!r}")
+    if isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in np.ravel(
+            np.asarray(value, dtype=object))):
+        raise ValueError(f"{name} must hold real numbers, got booleans: {value!r}")
+    return raw.astype(np.float64)
+
+
+def boolean(name: str, value: Any) -> bool:
+    """``value`` if it is True or False (a NumPy bool included), else ValueError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
 def vector(name: str, value: Any, lengths: Sequence[int], *, positive: bool = False) -> np.ndarray:
-    """A 1-D float64 array of one of the ``lengths``, finite (and > 0 with ``positive``)."""
-    arr = np.asarray(value, dtype=np.float64)
+    """A 1-D float64 array of one of the ``lengths``, finite (and > 0 with ``positive``);
+    real numbers only (:func:`real_array`)."""
+    arr = real_array(name, value)
     if arr.ndim != 1 or arr.shape[0] not in lengths:
         want = " or ".join(str(n) for n in lengths)
         raise ValueError(f"{name} must have {want} numbers, got {np.asarray(value).tolist()!r}")

@@ -12,8 +12,10 @@ part of the library it runs, so that ``dockjax plan`` does not load the study ma
 
 from __future__ import annotations
 
+import errno
 import json
 import math
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -24,10 +26,11 @@ import numpy as np
 import tyro
 
 from . import config
-from .runtime import claim_devices, enable_compilation_cache, usable_cores, use_cpu_devices
+from .io import DamagedFileError
+from .runtime import check_memory, claim_devices, enable_compilation_cache, usable_cores, use_cpu_devices
 
 __all__ = ["SweepArgs", "CompareArgs", "PlanArgs", "DemoArgs", "sweep", "compare", "plan", "demo", "main",
-           "demo_main"]
+           "demo_main", "exit_with", "describe_failure", "check_out", "TrackArgs", "track"]
 
 Algorithm = Literal["imocs", "mocs", "nsga2", "mopso"]
 Preset = Literal["paper", "wide"]
@@ -37,6 +40,36 @@ Pose = tuple[float, float, float, float, float, float]
 def _error(message: str) -> int:
     print(f"error: {message}", file=sys.stderr)
     return 2
+
+
+ROOM = 200
+"""Bytes of path kept free below PATH_MAX for the files a command writes inside --out."""
+
+
+def check_out(path: Path, option: str = "--out") -> None:
+    """ValueError unless ``path`` is, or can be created as, a writable folder whose files
+    fit the file system's name and path limits; creates nothing."""
+    path = Path(os.path.abspath(path))
+    base = path
+    while not base.exists():
+        base = base.parent
+    if not base.is_dir():
+        raise ValueError(f"{option} {path} " + ("is not a folder" if base == path else
+                                                f"cannot be created: {base} is not a folder"))
+    try:
+        name_max = os.pathconf(base, "PC_NAME_MAX")
+        path_max = os.pathconf(base, "PC_PATH_MAX")
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    for part in path.relative_to(base).parts:
+        if len(os.fsencode(part)) > name_max:
+            raise ValueError(f"{option}: the name {part[:40]}... is {len(os.fsencode(part))} bytes, over the file "
+                             f"system's {name_max}")
+    if len(os.fsencode(str(path))) > path_max - ROOM:
+        raise ValueError(f"{option} {str(path)[:60]}... is too long: {len(os.fsencode(str(path)))} bytes, the files "
+                         f"inside need it below {path_max - ROOM}")
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {path}: {base} is not writable")
 
 
 # -------------------------------------------------------------------------------- sweep
@@ -106,8 +139,9 @@ class SweepArgs:
     progress: bool = True
     """Show a progress bar (runs done, runs/s, ETA) on stderr."""
     devices: int | None = None
-    """CPU devices the runs of a chunk are sharded over (results are identical for any count; see
-    docs/performance.md for the speed-up). Default: one per usable core. Not part of the configuration."""
+    """CPU devices the runs of a chunk are sharded over (docs/performance.md for the speed-up). Default: one per
+    usable core. Part of the configuration: the order of some floating-point sums depends on it, and an optimiser's
+    choices can diverge from such a difference, so a folder resumes only with the count it was started with."""
 
 
 def _param_specs(args: SweepArgs):
@@ -145,7 +179,12 @@ def sweep(args: SweepArgs) -> int:
         except ImportError:
             errors.append("--backend dask needs Dask distributed: pip install 'dockjax[distributed]'")
     try:
-        claim_devices(args.devices)  # before any JAX computation
+        pop = max(args.pop) if args.pop else config.POP_SIZE
+        check_memory(min(args.chunk, args.seeds) * 2 * pop * config.BYTES_PER_CANDIDATE, "a chunk of --chunk runs "
+                     "at --pop")
+        check_memory(args.seeds * (2 * pop * 2 + 1024) * 8, "storing --seeds runs")
+        check_out(args.out)
+        n_devices = claim_devices(args.devices)  # before any JAX computation
     except ValueError as exc:
         return _error(str(exc))
     created: list[Path] = []
@@ -157,7 +196,8 @@ def sweep(args: SweepArgs) -> int:
                                      design_seed=args.design_seed, seeds=args.seeds, preset=args.preset,
                                      refine_steps=args.refine_steps, chunk=args.chunk, reference=args.reference,
                                      reference_front=args.reference_front, race=args.race,
-                                     race_min_seeds=args.race_min_seeds, race_alpha=args.race_alpha)
+                                     race_min_seeds=args.race_min_seeds, race_alpha=args.race_alpha,
+                                     devices=None if args.backend == "dask" else n_devices)
         except ValueError as exc:
             raise ConfigError("; ".join([str(exc), *errors])) from None
         if errors:
@@ -221,8 +261,8 @@ class CompareArgs:
     best_known_steps: int = config.BEST_KNOWN["steps"]
     """Refinement steps per time cap of the best-known front."""
     devices: int | None = None
-    """CPU devices the work is shared over (the runs are bit-identical for any count, the refinement's scores
-    equal to rounding). Default: one per usable core."""
+    """CPU devices the work is shared over (the order of some floating-point sums depends on the count, so runs
+    agree to rounding at first and may then diverge). Default: one per usable core."""
 
 
 def compare(args: CompareArgs) -> int:
@@ -240,6 +280,11 @@ def compare(args: CompareArgs) -> int:
         errors.append(f"--best-known-steps must be >= 1, got {args.best_known_steps}")
     if args.devices is not None and args.devices < 1:
         errors.append(f"--devices must be >= 1, got {args.devices}")
+    try:
+        check_memory(args.seeds * 2 * args.pop * config.BYTES_PER_CANDIDATE, "--seeds runs at --pop")
+        check_out(args.out)
+    except ValueError as exc:
+        errors.append(str(exc))
     if not errors:
         created = not args.out.exists()
         try:
@@ -327,8 +372,8 @@ class PlanArgs:
     out: Path = Path("plan")
     """Output folder."""
     devices: int | None = None
-    """CPU devices the work is shared over (the run is the same for any count, the refinement's scores equal to
-    rounding). Default: one per usable core for an optimiser, one for --method direct."""
+    """CPU devices the work is shared over (for an optimiser the results may differ by the count, as for
+    compare). Default: one per usable core for an optimiser, one for --method direct."""
 
 
 def plan(args: PlanArgs) -> int:
@@ -349,6 +394,15 @@ def plan(args: PlanArgs) -> int:
         return _error(f"--refine-steps must be >= 0, got {args.refine_steps}")
     if not 2 <= args.n_front <= 200:
         return _error(f"--n-front must lie in [2, 200], got {args.n_front}")
+    if not 0 <= args.seed < 2**63:
+        return _error(f"--seed must lie in [0, 2**63), got {args.seed}")
+    try:
+        if args.method != "direct":
+            check_memory(2 * args.pop * config.BYTES_PER_CANDIDATE, "--pop")
+        check_memory(6 * config.INTERVAL_BOUNDS[1] * max(args.interval_bounds[1], 1.0) * args.rate * 8 * 100,
+                     "--rate over the longest trajectory")
+    except ValueError as exc:
+        return _error(str(exc))
     if args.rate > config.MAX_RATE:
         return _error(f"--rate must be at most {config.MAX_RATE:g} Hz, got {args.rate:g}")
     weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
@@ -360,6 +414,10 @@ def plan(args: PlanArgs) -> int:
         extra = load_limits(args.limits) if args.limits is not None else {}
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
                                  interval_bounds=args.interval_bounds, **extra)
+    except ValueError as exc:
+        return _error(str(exc))
+    try:
+        check_out(args.out)
     except ValueError as exc:
         return _error(str(exc))
     if args.out.exists() and not args.out.is_dir():
@@ -407,6 +465,12 @@ def demo(args: DemoArgs) -> int:
         return _error(f"--n must be >= 1, got {args.n}")
     if args.top < 1:
         return _error(f"--top must be >= 1, got {args.top}")
+    if not 0 <= args.seed < 2**63:
+        return _error(f"--seed must lie in [0, 2**63), got {args.seed}")
+    try:
+        check_memory(args.n * config.BYTES_PER_CANDIDATE, "--n")
+    except ValueError as exc:
+        return _error(str(exc))
     use_cpu_devices(usable_cores())  # before any JAX computation: the rows are shared out
     enable_compilation_cache()
     from .metrics import nondominated_points
@@ -517,6 +581,10 @@ def track(args: TrackArgs) -> int:
         problem = DockingProblem(start=start, goal=goal, interval_bounds=args.interval_bounds)
     except ValueError as exc:
         return _error(str(exc).replace("model.", "--").replace("_", "-") if "model." in str(exc) else str(exc))
+    try:
+        check_out(args.out)
+    except ValueError as exc:
+        return _error(str(exc))
     if args.out.exists() and not args.out.is_dir():
         return _error(f"--out {args.out} exists and is not a folder")
     use_cpu_devices(1)
@@ -576,20 +644,65 @@ COMMANDS = {"sweep": (SweepArgs, sweep), "compare": (CompareArgs, compare), "pla
 """Subcommand → (options, function)."""
 
 
+def describe_failure(exc: BaseException) -> tuple[int, str]:
+    """The exit code and one-line message for an exception that reaches the command line:
+    2 for bad input (values, paths that cannot be used), 1 for work that cannot complete
+    (a full disk, memory, a damaged result file, an internal error), 130 for an interrupt."""
+    if isinstance(exc, KeyboardInterrupt):
+        return 130, "interrupted; every finished result is saved (files are only ever replaced whole)"
+    if isinstance(exc, DamagedFileError):
+        return 1, str(exc)
+    if isinstance(exc, ValueError):
+        return 2, str(exc)
+    if isinstance(exc, MemoryError):
+        return 1, "out of memory; ask for less at once (fewer --seeds, a smaller --pop or --chunk)"
+    if isinstance(exc, OSError):
+        where = f" ({exc.filename})" if exc.filename else ""
+        reason = exc.strerror or str(exc)
+        if exc.errno == errno.ENOSPC:
+            return 1, f"the disk is full{where}; free space and run the command again (finished results are kept)"
+        if exc.errno in (errno.ENAMETOOLONG, errno.EACCES, errno.EROFS, errno.ENOTDIR, errno.EISDIR, errno.EEXIST):
+            return 2, f"cannot write{where}: {reason}"
+        return 1, f"file system error{where}: {reason}"
+    return 1, f"internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback)"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """``dockjax <subcommand> [options]``; returns the exit code (the console script exits
-    with it)."""
-    args = tyro.extras.subcommand_cli_from_dict({name: opts for name, (opts, _) in COMMANDS.items()},
-                                                args=None if argv is None else list(argv), prog="dockjax")
-    run = next(fn for opts, fn in COMMANDS.values() if isinstance(args, opts))
-    return run(args)
+    """``dockjax <subcommand> [options] [--debug]``; returns the exit code (the console
+    script exits with it). Expected failures print one line ``error: …`` and give exit code
+    2 (bad input), 1 (cannot complete) or 130 (interrupted), without a traceback unless
+    ``--debug`` is given (:func:`describe_failure`)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
+    try:
+        args = tyro.extras.subcommand_cli_from_dict({name: opts for name, (opts, _) in COMMANDS.items()},
+                                                    args=argv, prog="dockjax")
+        run = next(fn for opts, fn in COMMANDS.values() if isinstance(args, opts))
+        return run(args)
+    except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 - one line per failure, see describe_failure
+        if debug:
+            raise
+        code, message = describe_failure(exc)
+        print(f"\n{message}" if code == 130 else f"error: {message}", file=sys.stderr)
+        return code
+
+
+def exit_with(code: int) -> None:
+    """Exit with ``code``; after an interrupt without the interpreter's shutdown, which can
+    crash while interrupted XLA computations still hold their threads."""
+    if code == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+    sys.exit(code)
 
 
 def console() -> None:
     """The ``dockjax`` console script."""
-    sys.exit(main())
+    exit_with(main())
 
 
 def demo_main() -> None:
     """The ``dockjax-demo`` console script: ``dockjax demo``."""
-    sys.exit(main(["demo", *sys.argv[1:]]))
+    exit_with(main(["demo", *sys.argv[1:]]))

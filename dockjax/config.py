@@ -84,6 +84,10 @@ MEMETIC_STEPS = 100
 # -- one certified plan ---------------------------------------------------------------------
 RATE = 1000.0
 """Servo rate of a plan's samples (Hz)."""
+BYTES_PER_CANDIDATE = 16_384
+"""A generous estimate of the working memory one candidate needs while a batch is scored
+(float64 kernel intermediates); the command lines refuse requests whose estimate exceeds
+the available memory."""
 MAX_RATE = 10_000.0
 """Highest servo rate a plan or a tracking simulation accepts (Hz)."""
 PLAN_REFINE_STEPS = 300

@@ -1,17 +1,29 @@
 """Atomic file writing: a temporary file in the target's folder, fsync, then ``os.replace``,
 so a file on disk is always either the previous one or the complete new one (an
-interrupted run never leaves a half-written file)."""
+interrupted run never leaves a half-written file). Array files carry a SHA-256 checksum of
+their contents, verified on load (:func:`load_npz`), so a damaged file is recognised and
+named instead of trusted."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
+import zipfile
+import zlib
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-__all__ = ["atomic_write", "atomic_write_text", "atomic_savez"]
+__all__ = ["DamagedFileError", "atomic_write", "atomic_write_text", "atomic_savez", "load_npz", "checksum"]
+
+CHECKSUM = "__sha256__"
+"""The member of an ``.npz`` written by :func:`atomic_savez` that holds its checksum."""
+
+
+class DamagedFileError(ValueError):
+    """A result file that cannot be read or whose checksum does not match; names the file."""
 
 
 def _usual_mode(path: str | os.PathLike) -> None:
@@ -44,7 +56,35 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     return atomic_write(path, lambda fh: fh.write(text.encode()))
 
 
+def checksum(arrays: dict[str, np.ndarray]) -> str:
+    """SHA-256 over every member's name, dtype, shape and bytes, in name order."""
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(np.asarray(arrays[name]))
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
 def atomic_savez(path: str | os.PathLike, arrays: dict[str, np.ndarray], *, compressed: bool = False) -> Path:
-    """Write a NumPy ``.npz`` archive atomically."""
+    """Write a NumPy ``.npz`` archive atomically, with its checksum (:func:`checksum`)."""
+    arrays = {k: np.asarray(v) for k, v in arrays.items()}
+    if CHECKSUM in arrays:
+        raise ValueError(f"{CHECKSUM} is reserved")
     save = np.savez_compressed if compressed else np.savez
-    return atomic_write(path, lambda fh: save(fh, **arrays))
+    return atomic_write(path, lambda fh: save(fh, **arrays, **{CHECKSUM: np.array(checksum(arrays))}))
+
+
+def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Every array of an ``.npz`` file (no pickled objects), its checksum verified when it
+    has one. Raises :class:`DamagedFileError` naming the file when it cannot be read or
+    does not match its checksum."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            out = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise DamagedFileError(f"{path} is damaged or not an array file ({type(exc).__name__}: {exc})") from None
+    stored = out.pop(CHECKSUM, None)
+    if stored is not None and str(stored) != checksum(out):
+        raise DamagedFileError(f"{path} is damaged: its contents do not match the checksum written with it")
+    return out

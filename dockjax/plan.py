@@ -15,6 +15,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
+import shutil
+import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -88,20 +91,30 @@ def load_limits(path: str | Path) -> dict:
         text = path.read_text()
     except OSError as exc:
         raise ValueError(f"limits file {path} cannot be read: {exc.strerror or exc}") from None
-    try:
-        if path.suffix.lower() == ".toml":
-            data = tomllib.loads(text)
-        else:
-            data = json.loads(text)
-    except Exception as exc:  # noqa: BLE001 - any parse error is bad input
-        kind = path.suffix.lstrip('.').upper() or 'JSON'
-        raise ValueError(f"limits file {path} is not valid {kind}: {exc}") from None
+    suffix = path.suffix.lower()
+    parsers = {".toml": (("TOML", tomllib.loads),), ".json": (("JSON", json.loads),)}.get(
+        suffix, (("JSON", json.loads), ("TOML", tomllib.loads)))
+    data, errors = None, []
+    for kind, parse in parsers:
+        try:
+            data = parse(text)
+            break
+        except Exception as exc:  # noqa: BLE001 - any parse error is bad input
+            errors.append(f"{kind}: {exc}")
+    if data is None:
+        kinds = " nor ".join(k for k, _ in parsers)
+        raise ValueError(f"limits file {path} is not valid {kinds if len(parsers) == 1 else 'neither ' + kinds} "
+                         f"({'; '.join(errors)})")
     if not isinstance(data, dict):
         raise ValueError(f"limits file {path} must hold a table of limits")
     allowed = {"travel", "velocity", "acceleration", "home"}
     unknown = sorted(set(data) - allowed)
     if unknown:
         raise ValueError(f"limits file {path}: unknown key(s) {unknown}; allowed {sorted(allowed)}")
+    for key, value in data.items():
+        if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                  for v in value):
+            raise ValueError(f"limits file {path}: {key} must be a list of numbers, got {value!r}")
     return data
 
 
@@ -449,10 +462,22 @@ def explain_text(why: dict) -> str:
 
 
 def write_plan(p: Plan, out: str | Path) -> list[Path]:
-    """Write trajectory.csv, summary.json, front.png and trajectory.png into ``out``
-    (each file atomically)."""
+    """Write trajectory.csv, summary.json, front.png, trajectory.png and limits.png into
+    ``out``: all into a temporary folder inside it first, then each renamed into place, so
+    a failure while writing leaves the previous plan's files untouched."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(dir=out, prefix=".plan-", suffix=".tmp"))
+    try:
+        written = _write_plan_files(p, stage)
+        for f in written:
+            os.replace(f, out / f.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return [out / f.name for f in written]
+
+
+def _write_plan_files(p: Plan, out: Path) -> list[Path]:
     files = [p.trajectory.to_csv(out / "trajectory.csv", p.rate)]
     summary = {
         "dockjax_version": __version__,

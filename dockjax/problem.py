@@ -167,7 +167,13 @@ class DockingProblem:
                         f"{label} value {q:.6g} of joint {name} is outside its travel "
                         f"{home_a[j]:.6g} ± {limits[j, 0]:.6g} about home"
                     )
-        box_lo, box_hi = _control_box(start_a, goal_a, mg)
+        checks.boolean("reduced", self.reduced)
+        with np.errstate(over="ignore", invalid="ignore"):
+            box_lo, box_hi = _control_box(start_a, goal_a, mg)
+        if not (np.all(np.isfinite(box_lo)) and np.all(np.isfinite(box_hi))
+                and np.all(np.abs(np.concatenate([box_lo, box_hi])) < 1e12)):
+            raise ValueError(f"margin {mg:g} makes the control-point box unbounded (|coordinates| >= 1e12); "
+                             "give a smaller margin")
         h_lo, h_hi = np.full(6, lo), np.full(6, hi)
         if self.reduced:
             lower, upper = h_lo, h_hi
@@ -248,7 +254,7 @@ class DockingProblem:
 
     def check_population(self, X) -> np.ndarray:
         """Validate a population: (n, n_var) finite numbers → float64 array. Not clipped."""
-        arr = np.asarray(X, dtype=np.float64)
+        arr = checks.real_array("X", X)
         if arr.ndim != 2 or arr.shape[1] != self.n_var:
             raise ValueError(f"X must have shape (n, {self.n_var}), got {np.shape(X)}")
         if not np.all(np.isfinite(arr)):
@@ -284,6 +290,8 @@ class DockingProblem:
         if not isinstance(screen, (bool, np.bool_)):
             raise ValueError(f"screen must be True or False, got {screen!r}")
         n = arr.shape[0]
+        if n == 0:
+            return np.zeros((0, self.n_obj)), np.zeros((0, self.n_con))
         devs = dev.choose(devices, -(-n // ROWS_PER_DEVICE))
         # pad to a bucket of rows (copies of row 0, dropped again): populations of nearby
         # sizes share one compiled shape; every device gets as many rows
@@ -303,6 +311,12 @@ class DockingProblem:
             G = np.array(G)
             _, G[rows] = self.with_right_arm("adaptive").evaluate(arr[rows], precision=precision, screen=screen,
                                                                    devices=devices)
+        bad = ~(np.all(np.isfinite(F), 1) & np.all(np.isfinite(G), 1))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"X row {i} is outside the kernel's numeric range (its scores overflow in "
+                             f"{precision}: intervals {arr[i, :config.N_INTERVALS].tolist()}); keep intervals and "
+                             "control points within a few orders of magnitude of the problem's box")
         return F, G
 
     def evaluate_jax(self, X, *, screen: bool = True):

@@ -59,7 +59,7 @@ import optax
 from . import checks, config
 from .decoding import decode, span_angles
 from .fusion import materialize
-from .io import atomic_savez
+from .io import DamagedFileError, atomic_savez, load_npz
 from .limits import columns, maxima, maxima_screened
 from .metrics import nondominated_points
 from .objectives import mean_square_jerk
@@ -427,13 +427,12 @@ def best_known_cached(problem: DockingProblem, path=None, log=print, **settings)
         path = Path(path) / f"best-known-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
     if path is not None and Path(path).exists():
         try:
-            with np.load(path, allow_pickle=False) as d:
-                if str(d["key"]) == key:
-                    log(f"best-known front: {len(d['F'])} points from {path}")
-                    return FrontResult(X=d["X"], F=d["F"], G=d["G"], targets=d["targets"],
-                                       seconds=float(d["seconds"]))
-        except (OSError, ValueError, KeyError):
-            pass  # unreadable: computed again
+            d = load_npz(path)
+            if str(d["key"]) == key:
+                log(f"best-known front: {len(d['F'])} points from {path}")
+                return FrontResult(X=d["X"], F=d["F"], G=d["G"], targets=d["targets"], seconds=float(d["seconds"]))
+        except (DamagedFileError, KeyError):
+            log(f"best-known front: {path} is damaged; computed again")
     front = best_known_front(problem, **{**config.BEST_KNOWN, **settings})
     log(f"best-known front: {len(front.F)} points in {front.seconds:.1f} s (compile included)")
     if path is not None:

@@ -13,7 +13,8 @@ import jax
 
 from . import checks
 
-__all__ = ["enable_compilation_cache", "usable_cores", "use_cpu_devices", "claim_devices"]
+__all__ = ["enable_compilation_cache", "usable_cores", "use_cpu_devices", "claim_devices", "available_memory",
+           "check_memory"]
 
 
 def enable_compilation_cache() -> None:
@@ -60,3 +61,28 @@ def claim_devices(devices: int | None) -> int:
         print(f"note: JAX's CPU backend was already initialised with {have} device(s); using them",
               file=sys.stderr)
     return have
+
+
+def available_memory() -> int:
+    """Bytes of memory available to this process: ``MemAvailable`` of /proc/meminfo, else
+    the physical memory (os.sysconf), else 2**40 where neither is known."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 1 << 40
+
+
+def check_memory(need: float, what: str) -> None:
+    """ValueError naming ``what`` when an estimated ``need`` (bytes) exceeds the memory
+    available (:func:`available_memory`)."""
+    have = available_memory()
+    if need > have:
+        raise ValueError(f"{what} needs about {need / 2**30:.3g} GiB of memory, more than the {have / 2**30:.3g} GiB "
+                         "available; ask for less")

@@ -6,7 +6,7 @@
 
 import sys
 
-from dockjax.cli import main
+from dockjax.cli import exit_with, main
 
 if __name__ == "__main__":
-    sys.exit(main(["compare", *sys.argv[1:]]))
+    exit_with(main(["compare", *sys.argv[1:]]))

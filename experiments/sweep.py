@@ -9,7 +9,7 @@
 
 import sys
 
-from dockjax.cli import main
+from dockjax.cli import exit_with, main
 
 if __name__ == "__main__":
-    sys.exit(main(["sweep", *sys.argv[1:]]))
+    exit_with(main(["sweep", *sys.argv[1:]]))

@@ -54,10 +54,14 @@ class SweepConfig:
     refine_steps: int = 0
     race: dict | None = None
     """None, or ``{"min_seeds": m, "alpha": a}``."""
+    devices: int | None = None
+    """CPU devices a chunk's runs are sharded over. Sharding changes the order of some
+    floating-point reductions, and an optimiser's choices can then diverge after many
+    iterations, so the count is part of the identity (None: not recorded, e.g. Dask)."""
 
     def identity(self) -> dict:
         return {"format": FORMAT, "preset": self.preset, "settings": [s.identity() for s in self.settings],
-                "seeds": self.seeds, "chunk": self.chunk, "reference": self.reference,
+                "seeds": self.seeds, "chunk": self.chunk, "reference": self.reference, "devices": self.devices,
                 "refine_steps": self.refine_steps, "race": self.race, "hv_ref": config.HV_REFERENCE,
                 "normalisation": "ideal and nadir of reference.npz's front"}
 
@@ -189,8 +193,8 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
                 iters: Sequence[int] = (config.SWEEP_ITERS,), budget: int | None = None, design: str = "grid",
                 samples: int = 0, design_seed: int = 0, seeds: int = config.SWEEP_SEEDS, preset: str = "paper",
                 refine_steps: int = 0, chunk: int = config.SWEEP_CHUNK, reference: str = "best-known",
-                reference_front=None, race: bool = False, race_min_seeds: int = 5, race_alpha: float = 0.05
-                ) -> tuple[SweepConfig, np.ndarray | None]:
+                reference_front=None, race: bool = False, race_min_seeds: int = 5, race_alpha: float = 0.05,
+                devices: int | None = None) -> tuple[SweepConfig, np.ndarray | None]:
     """Validate a sweep (nothing is written, nothing is compiled) and build its
     configuration. ``reference``: ``"best-known"`` (default), ``"pilot"`` or ``"file"``
     (``reference_front`` a path). Returns the configuration and the loaded reference front
@@ -249,5 +253,6 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
         raise ConfigError("; ".join(errors))
     cfg = SweepConfig(settings=tuple(settings), preset=preset, seeds=seeds, chunk=chunk, reference=ref,
                       refine_steps=refine_steps,
-                      race={"min_seeds": race_min_seeds, "alpha": race_alpha} if race else None)
+                      race={"min_seeds": race_min_seeds, "alpha": race_alpha} if race else None,
+                      devices=devices)
     return cfg, front

@@ -19,9 +19,9 @@ from ..io import atomic_savez
 from ..metrics import nondominated_points
 from ..problem import make_problem
 from ..refine import best_known_cached
-from .config import PILOT_SEED0, SweepConfig, pilot_spec
+from .config import PILOT_SEED0, ConfigError, SweepConfig, pilot_spec
 from .execute import run_chunk
-from .files import load_npz
+from .files import DamagedFileError, load_npz
 
 __all__ = ["fronts_cache", "fixed_reference"]
 
@@ -36,9 +36,14 @@ def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backe
     """``out/reference.npz``, made now if it does not exist yet (then reused unchanged)."""
     path = out / "reference.npz"
     if path.exists():
-        ref = load_npz(path)
-        log(f"reference: {len(ref['front'])} points ({ref['source']}) from {path} (fixed at sweep start)")
-        return ref
+        try:
+            ref = load_npz(path)
+            log(f"reference: {len(ref['front'])} points ({ref['source']}) from {path} (fixed at sweep start)")
+            return ref
+        except (DamagedFileError, KeyError) as exc:
+            if cfg.reference["kind"] == "file" and front is None:
+                raise ConfigError(f"{exc}; it was made from --reference-front: pass that file again") from None
+            log(f"reference: {path} is damaged; made again ({cfg.reference['kind']}, deterministic)")
     t0 = time.perf_counter()
     kind = cfg.reference["kind"]
     if kind == "best-known":

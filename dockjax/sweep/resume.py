@@ -21,7 +21,7 @@ from ..version import __version__
 from .config import ChunkSpec, ConfigError, SweepConfig, plan_round, round_seeds
 from .design import Setting
 from .execute import DaskBackend, LocalBackend, run_chunk
-from .files import load_npz
+from .files import DamagedFileError, load_npz
 from .race import eliminate
 from .reference import fixed_reference
 
@@ -126,9 +126,9 @@ def _check(path: Path, spec: ChunkSpec) -> bool:
     if not path.exists():
         return False
     try:
-        with np.load(path, allow_pickle=False) as z:
-            settings, seeds, _ = z["setting"], z["seed"], z["front_offsets"]
-    except Exception:  # truncated or damaged: recomputed
+        z = load_npz(path)
+        settings, seeds, _ = z["setting"], z["seed"], z["front_offsets"]
+    except (DamagedFileError, KeyError):  # truncated, damaged or incomplete: recomputed
         return False
     if tuple(settings.tolist()) != spec.settings[:spec.n_real] or tuple(seeds.tolist()) != spec.seeds[:spec.n_real]:
         raise ConfigError(f"--out {path.parent.parent}: {path.name} holds other runs than this sweep's plan; "
@@ -156,8 +156,9 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
     try:
         _write_config(out, cfg)
         chunks_dir.mkdir(exist_ok=True)
-        for stale in chunks_dir.glob(".*.tmp"):  # left by a kill during a write
-            stale.unlink(missing_ok=True)
+        for folder in (out, chunks_dir):  # temporary files left by a kill during a write
+            for stale in folder.glob(".*.*.tmp"):
+                stale.unlink(missing_ok=True)
         kind = f"race over {cfg.seeds} seeds (min {cfg.race['min_seeds']})" if cfg.race else f"{cfg.seeds} seeds"
         log(f"sweep: {', '.join(cfg.algorithms)}; {len(cfg.settings)} settings, {kind}, {cfg.n_runs()} runs at most")
         ref = fixed_reference(out, cfg, front, be, log)
