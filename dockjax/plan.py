@@ -399,11 +399,19 @@ class Planner:
         return DockingProblem(**fields)
 
     def warm(self) -> "Planner":
-        """Solve the template problem (the first :meth:`plan` does it otherwise)."""
+        """Solve the template problem and compile the sampling of every trajectory length the
+        interval bounds allow (the first :meth:`plan` does it otherwise)."""
         if self._template is None:
             shortest, front = _direct_front(self.problem, self.n_front)
             self._template = np.array([shortest.x] + [s.x for s in front])
             solve.min_jerk(self.problem, front[0].x, float(front[0].F[0]), max_iter=self.max_iter)
+            # samples are computed in power-of-two buckets: one trajectory per bucket compiles them all
+            t_lo, t_hi = (config.N_INTERVALS * b for b in self.problem.interval_bounds)
+            sizes = {max(1024, 1 << max(int(t * self.rate), 1).bit_length()) for t in np.linspace(t_lo, t_hi, 64)}
+            for size in sorted(sizes):
+                T = min(max((size // 2 + 1) / self.rate, t_lo), t_hi)
+                self.problem.decode(solve.straight_line(self.problem, [T])[0]).sample(self.rate)
+            self.plan(self.problem.start, self.problem.goal)  # compiles the replanning path once
         return self
 
     def plan(self, start=None, goal=None, *, weights=(1.0, 1.0)) -> Plan:
