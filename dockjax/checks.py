@@ -80,13 +80,13 @@ def real_array(name: str, value: Any) -> np.ndarray:
         raw = np.asarray(value)
     except (ValueError, TypeError):
         raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None
-    flat = raw.ravel().tolist() if raw.dtype == object else []
-    if raw.dtype.kind not in "iuf" or any(isinstance(v, (bool, np.bool_)) for v in flat):
+    if raw.dtype.kind not in "iuf":
         kind = {"b": "booleans", "U": "strings", "S": "strings", "c": "complex numbers"}.get(raw.dtype.kind,
                                                                                             "non-numbers")
         raise ValueError(f"{name} must hold real numbers, got {kind}: {value!r}")
-    if isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in np.ravel(
-            np.asarray(value, dtype=object))):
+    # a list mixing booleans with numbers converts to numbers: look at its elements
+    if isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_))
+                                                for v in np.asarray(value, dtype=object).ravel()):
         raise ValueError(f"{name} must hold real numbers, got booleans: {value!r}")
     return raw.astype(np.float64)
 
