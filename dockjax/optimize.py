@@ -37,7 +37,9 @@ class Result:
     ``G`` (runs, n, n_con), ``cv`` (runs, n), ``feasible`` (runs, n), ``front`` (runs, n) the
     feasible non-dominated members of each final set; ``history`` (runs, n_iter) the
     hypervolume of each run's current feasible set after every iteration (reference point
-    ``hv_ref``, in objective units), if requested; ``seconds`` wall time incl. compile.
+    ``hv_ref``, in objective units), if requested; ``params`` the algorithm's ``Params``
+    with every run's hyper-parameters (each traced leaf (runs,); :meth:`params_of` gives
+    one run's); ``seconds`` wall time incl. compile.
     """
 
     algorithm: str
@@ -58,6 +60,18 @@ class Result:
     def __len__(self) -> int:
         return self.F.shape[0]
 
+    def __repr__(self) -> str:
+        runs, n = self.F.shape[:2]
+        sizes = self.front.sum(axis=1)
+        feasible = int(self.feasible.sum())
+        return (f"Result({self.algorithm}: {runs} run{'s' * (runs != 1)} of {n} candidates, seeds "
+                f"{_span(self.seeds)}; {feasible} feasible members, fronts of {int(sizes.min())}-{int(sizes.max())} "
+                f"points; {self.seconds:.2f} s)")
+
+    def params_of(self, i: int) -> Any:
+        """The ``Params`` run ``i`` ran with (its hyper-parameters as plain numbers)."""
+        return base.params_at(self.params, i)
+
     def run(self, i: int) -> dict[str, np.ndarray]:
         """The i-th run's final set: X, F, G and its feasible non-dominated members."""
         m = self.front[i]
@@ -73,6 +87,14 @@ class Result:
         return out
 
 
+def _span(seeds: np.ndarray) -> str:
+    """``0..30`` for consecutive seeds, else the list (shortened)."""
+    s = [int(v) for v in seeds]
+    if len(s) > 1 and s == list(range(s[0], s[0] + len(s))):
+        return f"{s[0]}..{s[-1]}"
+    return str(s) if len(s) <= 6 else f"[{s[0]}, {s[1]}, ..., {s[-1]}]"
+
+
 def _front_mask(F, cv):
     rank = pareto.nondominated_rank_2d(F, cv) if F.shape[1] == 2 else pareto.nondominated_rank(F, cv)
     return (rank == 0) & (cv <= 0)
@@ -82,11 +104,11 @@ def optimize(
     algorithm: str | Algorithm,
     problem,
     *,
+    params: Any = None,
     seeds=(0,),
-    pop_size: int = config.POP_SIZE,
-    n_iter: int = config.N_ITER,
+    pop_size: int | None = None,
+    n_iter: int | None = None,
     hv_ref=None,
-    batch_params: dict[str, Any] | None = None,
     refine_steps: int = 0,
     driver: str = "scan",
     devices: int | None = None,
@@ -94,9 +116,14 @@ def optimize(
 ) -> Result:
     """Run ``algorithm`` on ``problem`` once per seed, all runs batched (vmapped) together.
 
-    ``hyper`` sets hyper-parameters (e.g. ``rho=0.4, alpha_max=0.1``); ``batch_params``
-    maps hyper-parameter names to arrays of length ``len(seeds)`` to vary them per run (a
-    sweep in one call). ``hv_ref`` (2,) in objective units records the hypervolume of the
+    ``params``: the algorithm's ``Params`` pytree (e.g. ``imocs.Params(rho=0.4)``, or
+    :func:`dockjax.algorithms.make_params`); a leaf of shape (runs,) gives every run its
+    own value (a sweep in one call, :func:`dockjax.algorithms.base.stack_params`), a
+    scalar is shared. Instead of ``params``, hyper-parameters may be given as keywords
+    (``rho=0.4``, or ``rho=[0.3, 0.5]`` for one value per run) with ``pop_size`` (default
+    150) and ``n_iter`` (default 100), which also sets ``max_iter`` where the algorithm
+    has one. With ``params``, ``n_iter`` defaults to its ``max_iter`` (else 100).
+    ``hv_ref`` (2,) in objective units records the hypervolume of the
     current feasible set after every iteration. ``refine_steps > 0`` makes the run memetic:
     the final population of every run is polished by :func:`refine_result` (gradient
     refinement, :mod:`dockjax.refine`) and the algorithm is reported as ``"<name>+refine"``.
@@ -116,55 +143,66 @@ def optimize(
     (:func:`dockjax.runtime.use_cpu_devices`).
     The runs are padded to a multiple of the device count (copies of the last run, dropped
     again); results equal the one-device results (a test compares them).
-    ``Result.extra["devices"]`` records the count used, ``Result.extra["share_rows"]``
+    ``Result.params`` holds every run's hyper-parameters (leaves of shape (runs,)),
+    ``Result.extra["devices"]`` the device count used, ``Result.extra["share_rows"]``
     whether the devices shared the rows of one batch rather than the runs.
     Bad input raises ValueError before compiling.
     """
-    algo, seeds, params, batch_params, hv_ref = _check_request(algorithm, seeds, pop_size, n_iter, hv_ref,
-                                                               batch_params, refine_steps, driver, hyper)
+    algo, seeds, params, n_iter, hv_ref = _check_request(algorithm, problem, params, seeds, pop_size, n_iter, hv_ref,
+                                                         refine_steps, driver, hyper)
     # the scan driver shares each evaluation's rows when there are fewer runs than devices
-    devs = dev.choose(devices, seeds.size if driver == "host" else max(seeds.size, pop_size))
+    devs = dev.choose(devices, seeds.size if driver == "host" else max(seeds.size, params.pop_size))
     t0 = time.perf_counter()
-    pop, front, trace, share = _run_on_devices(algo, problem, params, n_iter, seeds, batch_params, hv_ref, driver,
-                                               devs)
+    pop, front, trace, share = _run_on_devices(algo, problem, params, n_iter, seeds, hv_ref, driver, devs)
     with jax.enable_x64(True):
         X = np.asarray(base.to_natural(problem, jnp.asarray(pop.U)))
     result = Result(
-        algorithm=algo.name, params=params, seeds=seeds, X=X, U=pop.U,
+        algorithm=algo.name, params=base.broadcast_params(params, seeds.size), seeds=seeds, X=X, U=pop.U,
         F=pop.F, G=pop.G, cv=pop.cv, feasible=pop.cv <= 0, front=front, history=trace,
         hv_ref=hv_ref, seconds=time.perf_counter() - t0, extra={"devices": len(devs), "share_rows": share},
     )
     return refine_result(problem, result, steps=int(refine_steps)) if refine_steps else result
 
 
-def _check_request(algorithm, seeds, pop_size, n_iter, hv_ref, batch_params, refine_steps, driver, hyper):
+def _check_request(algorithm, problem, params, seeds, pop_size, n_iter, hv_ref, refine_steps, driver, hyper):
     """:func:`optimize`'s arguments checked (ValueError before any compilation) and
-    resolved: the algorithm, seeds (runs,), Params, per-run overrides, hv_ref."""
+    resolved: the algorithm, seeds (runs,), Params, the iteration count, hv_ref."""
     algo = get(algorithm)
-    checks.integer("pop_size", pop_size, 4)
-    checks.integer("n_iter", n_iter, 1)
+    for name in ("n_var", "n_obj", "n_con", "lower", "upper", "evaluate_jax"):
+        if not hasattr(problem, name):
+            raise ValueError(f"problem must be a problem object such as DockingProblem() (it has no {name!r}), "
+                             f"got {problem!r}")
+    checks.optional_integer("pop_size", pop_size, 4)
+    checks.optional_integer("n_iter", n_iter, 1)
     checks.integer("refine_steps", refine_steps, 0)
     checks.choice("driver", driver, ("scan", "host"))
     seeds = np.atleast_1d(np.asarray(seeds))
     if seeds.ndim != 1 or seeds.size == 0 or not np.issubdtype(seeds.dtype, np.integer):
         raise ValueError(f"seeds must be a non-empty 1-D list of integers, got {seeds!r}")
-    params = make_params(algo, pop_size, n_iter, **hyper)
-    batch_params = dict(batch_params or {})
-    for name, values in batch_params.items():
-        values = np.asarray(values, dtype=np.float64)
-        if values.shape != seeds.shape:
-            raise ValueError(f"batch_params[{name!r}] must have one value per seed ({seeds.size}), "
-                             f"got shape {values.shape}")
-        make_params(algo, pop_size, n_iter, **{**hyper, name: values})
-        batch_params[name] = values
+    if params is None:
+        n_iter = config.N_ITER if n_iter is None else n_iter
+        params = make_params(algo, config.POP_SIZE if pop_size is None else pop_size, n_iter, **hyper)
+    else:
+        if not isinstance(params, algo.Params):
+            raise ValueError(f"params must be {algo.name}'s Params, got {type(params).__module__}."
+                             f"{type(params).__name__}")
+        if hyper:
+            raise ValueError(f"give the hyper-parameters in params or as keywords, not both (got {sorted(hyper)})")
+        if pop_size is not None and pop_size != params.pop_size:
+            raise ValueError(f"pop_size {pop_size} differs from params.pop_size {params.pop_size}")
+        base.validate_params(params)
+        n_iter = n_iter if n_iter is not None else getattr(params, "max_iter", config.N_ITER)
+    runs = base.n_runs(params)
+    if runs is not None and runs != seeds.size:
+        raise ValueError(f"the per-run hyper-parameters have {runs} values, not one per seed ({seeds.size})")
     if hv_ref is not None:
         hv_ref = np.asarray(hv_ref, dtype=np.float64)
         if hv_ref.shape != (2,) or not np.all(np.isfinite(hv_ref)):
             raise ValueError(f"hv_ref must be two finite numbers, got {hv_ref!r}")
-    return algo, seeds, params, batch_params, hv_ref
+    return algo, seeds, params, int(n_iter), hv_ref
 
 
-def _run_on_devices(algo, problem, params, n_iter, seeds, batch_params, hv_ref, driver, devs):
+def _run_on_devices(algo, problem, params, n_iter, seeds, hv_ref, driver, devs):
     """Every run on the devices ``devs`` by the chosen driver: the runs shared out (padded
     to a multiple of the device count with copies of the last run, dropped again), or, with
     fewer runs than devices, every device running all of them and sharing each
@@ -174,20 +212,20 @@ def _run_on_devices(algo, problem, params, n_iter, seeds, batch_params, hv_ref, 
     padded = lambda a: np.concatenate([a, np.repeat(a[-1:], pad, 0)])  # noqa: E731
     with jax.enable_x64(True):
         keys = jax.vmap(prng.key)(jnp.asarray(padded(seeds)))  # JAX's keys, drawn faster
-        overrides = {k: jnp.asarray(padded(v)) for k, v in batch_params.items()}
+        params = jax.tree_util.tree_map(lambda a: jnp.asarray(padded(np.asarray(a))) if np.ndim(a) else a, params)
         ref = None if hv_ref is None else jnp.asarray(hv_ref)
         where = dev.mesh(devs)
         if share:
-            out = dev.replicated(_run_batch_scan, (algo, n_iter, len(devs)), where, keys, problem, params,
-                                 overrides, ref)
-        elif driver == "scan":
-            keys, overrides = dev.put((keys, overrides), where)
-            R, S = dev.SHARDED, dev.SAME
-            out = dev.sharded(_run_batch_scan, (algo, n_iter, 1), where, (R, S, S, R, S), keys, problem, params,
-                              overrides, ref)
+            out = dev.replicated(_run_batch_scan, (algo, n_iter, len(devs)), where, keys, problem, params, ref)
         else:
-            keys, overrides = dev.put((keys, overrides), where)
-            out = _run_batch_host(algo, n_iter, keys, problem, params, overrides, ref, where)
+            keys = dev.put(keys, where)
+            params = jax.tree_util.tree_map(lambda a: dev.put(a, where) if np.ndim(a) else a, params)
+            specs = jax.tree_util.tree_map(lambda a: dev.SHARDED if np.ndim(a) else dev.SAME, params)
+            if driver == "scan":
+                out = dev.sharded(_run_batch_scan, (algo, n_iter, 1), where, (dev.SHARDED, dev.SAME, specs, dev.SAME),
+                                  keys, problem, params, ref)
+            else:
+                out = _run_batch_host(algo, n_iter, keys, problem, params, specs, ref, where)
         pop, front, trace = jax.tree_util.tree_map(lambda a: np.asarray(a)[:n_runs], out)
     return pop, front, trace, share
 
@@ -237,13 +275,12 @@ _front_batch = jax.jit(jax.vmap(_front_mask))
 
 
 @partial(jax.jit, static_argnames=("algo", "n_iter", "parts"))
-def _run_batch_scan(algo, n_iter, parts, keys, problem, params, overrides, hv_ref):
+def _run_batch_scan(algo, n_iter, parts, keys, problem, params, hv_ref):
     """The scan driver; ``parts > 1``: inside :func:`dockjax.devices.replicated` over that
     many devices, each scoring its share of the rows."""
     history = None if hv_ref is None else (lambda s: _history(algo, s, hv_ref))
     evaluate = None if parts == 1 else partial(_shared_evaluate, parts)
-    state, trace = base.run_batch(algo, keys, problem, params, n_iter, overrides=overrides, history=history,
-                                  evaluate=evaluate)
+    state, trace = base.run_batch(algo, keys, problem, params, n_iter, history=history, evaluate=evaluate)
     pop = jax.vmap(algo.final_population)(state)
     return pop, jax.vmap(_front_mask)(pop.F, pop.cv), trace
 
@@ -260,18 +297,14 @@ def _shared_evaluate(parts, problem, U):
     return base.Population(U=U, F=F, G=G, cv=cv)
 
 
-def _with(params, ov):
-    return replace(params, **ov) if ov else params
+@partial(jax.jit, static_argnames="algo")
+def _batch_init_ask(algo, keys, problem, params):
+    return jax.vmap(lambda k, p: algo.init_ask(k, problem, p), in_axes=(0, base.run_axes(params)))(keys, params)
 
 
 @partial(jax.jit, static_argnames="algo")
-def _batch_init_ask(algo, keys, problem, params, overrides):
-    return jax.vmap(lambda k, ov: algo.init_ask(k, problem, _with(params, ov)))(keys, overrides)
-
-
-@partial(jax.jit, static_argnames="algo")
-def _batch_ask(algo, state, problem, params, overrides):
-    return jax.vmap(lambda s, ov: algo.ask(s, problem, _with(params, ov)))(state, overrides)
+def _batch_ask(algo, state, problem, params):
+    return jax.vmap(lambda s, p: algo.ask(s, problem, p), in_axes=(0, base.run_axes(params)))(state, params)
 
 
 _batch_evaluate = jax.jit(base.evaluate_runs)
@@ -285,17 +318,17 @@ def _history(algo, state, hv_ref):
 
 
 @partial(jax.jit, static_argnames="algo")
-def _batch_init_tell(algo, keys, pop, params, overrides):
-    return jax.vmap(lambda k, p, ov: algo.init_tell(k, p, _with(params, ov)))(keys, pop, overrides)
+def _batch_init_tell(algo, keys, pop, params):
+    return jax.vmap(lambda k, q, p: algo.init_tell(k, q, p), in_axes=(0, 0, base.run_axes(params)))(keys, pop, params)
 
 
 @partial(jax.jit, static_argnames="algo")
-def _batch_tell(algo, state, pop, params, overrides, hv_ref):
-    def one(s, p, ov):
-        s = algo.tell(s, p, _with(params, ov))
+def _batch_tell(algo, state, pop, params, hv_ref):
+    def one(s, q, p):
+        s = algo.tell(s, q, p)
         return s, _history(algo, s, hv_ref)
 
-    return jax.vmap(one)(state, pop, overrides)
+    return jax.vmap(one, in_axes=(0, 0, base.run_axes(params)))(state, pop, params)
 
 
 @partial(jax.jit, static_argnames="algo")
@@ -304,19 +337,20 @@ def _batch_final(algo, state):
     return pop, jax.vmap(_front_mask)(pop.F, pop.cv)
 
 
-def _run_batch_host(algo, n_iter, keys, problem, params, overrides, hv_ref, where=None):
-    """Every run of a batch (keys, per-run hyper-parameter overrides) for ``n_iter``
-    iterations, driven from Python; each device of the mesh ``where`` (None: one device)
-    runs its share of the runs. → (final populations, front masks, history or None)."""
+def _run_batch_host(algo, n_iter, keys, problem, params, specs, hv_ref, where=None):
+    """Every run of a batch (keys, ``params`` whose leaves may carry a run axis, ``specs``
+    their placement) for ``n_iter`` iterations, driven from Python; each device of the mesh
+    ``where`` (None: one device) runs its share of the runs. → (final populations, front
+    masks, history or None)."""
     R, S = dev.SHARDED, dev.SAME
-    U, key0 = dev.sharded(_batch_init_ask, (algo,), where, (R, S, S, R), keys, problem, params, overrides)
+    U, key0 = dev.sharded(_batch_init_ask, (algo,), where, (R, S, specs), keys, problem, params)
     pop = dev.sharded(_batch_evaluate, (), where, (S, R), problem, U)
-    state = dev.sharded(_batch_init_tell, (algo,), where, (R, R, S, R), key0, pop, params, overrides)
+    state = dev.sharded(_batch_init_tell, (algo,), where, (R, R, specs), key0, pop, params)
     trace = []
     for _ in range(n_iter):
-        U, state = dev.sharded(_batch_ask, (algo,), where, (R, S, S, R), state, problem, params, overrides)
+        U, state = dev.sharded(_batch_ask, (algo,), where, (R, S, specs), state, problem, params)
         pop = dev.sharded(_batch_evaluate, (), where, (S, R), problem, U)
-        state, hv = dev.sharded(_batch_tell, (algo,), where, (R, R, S, R, S), state, pop, params, overrides, hv_ref)
+        state, hv = dev.sharded(_batch_tell, (algo,), where, (R, R, specs, S), state, pop, params, hv_ref)
         trace.append(hv)
     pop, front = dev.sharded(_batch_final, (algo,), where, (R,), state)
     return pop, front, (None if hv_ref is None else jnp.stack(trace, axis=1))

@@ -164,8 +164,17 @@ def test_same_key_gives_bit_identical_runs_and_batching_does_not_change_them(doc
             assert batched == pytest.approx(alone, rel=0.01)
 
 
-def test_batch_params_vary_hyper_parameters_per_run():
-    r = optimize("imocs", ZDT1(), seeds=[0, 0], pop_size=20, n_iter=5, batch_params={"rho": [0.3, 0.7]})
+def test_per_run_hyper_parameters_vary_the_runs_and_are_kept_in_the_result():
+    from dockjax.algorithms import imocs
+
+    r = optimize("imocs", ZDT1(), seeds=[0, 0], pop_size=20, n_iter=5, rho=[0.3, 0.7])
     assert not np.array_equal(r.U[0], r.U[1])  # ρ changes the chaotic start
-    same = optimize("imocs", ZDT1(), seeds=[0, 0], pop_size=20, n_iter=5, batch_params={"rho": [0.3, 0.3]})
+    assert r.params_of(1) == imocs.Params(pop_size=20, max_iter=5, rho=0.7)
+    np.testing.assert_array_equal(r.params.alpha_max, [0.1, 0.1])
+    # the same runs from a Params pytree whose leaf carries the run axis
+    params = imocs.Params(pop_size=20, max_iter=5, rho=np.array([0.3, 0.3]))
+    same = optimize("imocs", ZDT1(), params=params, seeds=[0, 0])
     np.testing.assert_array_equal(same.U[0], same.U[1])
+    np.testing.assert_array_equal(same.U[0], r.U[0])
+    with pytest.raises(ValueError, match="one per seed"):
+        optimize("imocs", ZDT1(), params=params, seeds=[0, 1, 2])

@@ -301,7 +301,7 @@ def test_host_driver_equals_the_scan_driver(name):
     from dockjax.optimize import optimize
 
     kw = dict(seeds=[3, 4, 5], pop_size=10, n_iter=4, hv_ref=np.array([1.2, 6.0]),
-              batch_params={"rho": [0.3, 0.4, 0.6]} if name == "imocs" else {})
+              **({"rho": [0.3, 0.4, 0.6]} if name == "imocs" else {}))
     scan = optimize(name, ZDT1(n_var=5), driver="scan", **kw)
     host = optimize(name, ZDT1(n_var=5), driver="host", **kw)
     np.testing.assert_allclose(host.U, scan.U, rtol=0, atol=1e-12)

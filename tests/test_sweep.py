@@ -239,15 +239,17 @@ def test_plan_is_balanced_padded_and_deterministic():
     assert plan == sweep.plan_round(cfg, 0, alive, round_seeds(cfg, 0, 0, len(alive)))
     # every run carries its own hyper-parameters
     c = plan[0]
-    batch = dict(c.batch)
+    params = c.params()
     for j in range(c.n_real):
-        assert dict(cfg.settings[c.settings[j]].params) == {k: batch[k][j] for k in batch}
+        setting = dict(cfg.settings[c.settings[j]].params)
+        assert dict(c.hyper[j]) == setting
+        assert (params.rho[j], params.alpha_max[j]) == (setting["rho"], setting["alpha_max"])
     odd = _cfg(params=[sweep.ParamSpec("alpha_max", "imocs", values=(0.1, 0.2, 0.3))], seeds=1)
     plan = sweep.plan_round(odd, 0, np.ones(3, bool), range(1))
     assert [(len(c.seeds), c.n_real) for c in plan] == [(2, 2), (2, 1)]
-    assert plan[-1].seeds == (0, 0) and dict(plan[-1].batch)["alpha_max"] == (0.3, 0.3)  # padded with its own run
+    assert plan[-1].seeds == (0, 0) and list(plan[-1].params().alpha_max) == [0.3, 0.3]  # padded with its own run
     pilot = sweep.pilot_spec(cfg)
-    assert pilot.pop == 12 and min(pilot.seeds) >= PILOT_SEED0 and pilot.batch == ()
+    assert pilot.pop == 12 and min(pilot.seeds) >= PILOT_SEED0 and set(pilot.hyper) == {()}
 
 
 def test_race_rounds_fill_a_chunk_with_the_survivors():

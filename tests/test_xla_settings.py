@@ -25,7 +25,7 @@ from dockjax.optimize import optimize
 
 out = {"devices": len(jax.local_devices())}
 kw = dict(seeds=[3, 4, 5], pop_size=10, n_iter=4, hv_ref=np.array([1.2, 6.0]),
-          batch_params={"rho": [0.3, 0.4, 0.6]})
+          rho=[0.3, 0.4, 0.6])
 for driver in ("scan", "host"):
     for label, d in (("one", 1), ("two", None)):
         r = optimize("imocs", ZDT1(n_var=5), devices=d, driver=driver, **kw)

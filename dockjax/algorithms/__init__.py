@@ -3,8 +3,9 @@
 ``imocs`` (the paper's), ``mocs`` (Yang & Deb 2013), ``nsga2`` (Deb et al. 2002) and
 ``mopso`` (Coello et al. 2004), each an :class:`~dockjax.algorithms.base.Algorithm`
 (the contract: ``Params``, ``State``, ``init_ask``/``init_tell``/``ask``/``tell``,
-``final_population``) in its own module. :data:`ALGORITHMS` is the one registry the
-drivers (:func:`dockjax.optimize.optimize`), the command lines and the tests iterate over.
+``final_population``) in its own module. :data:`ALGORITHMS` is the one registry: the
+drivers (:func:`dockjax.optimize.optimize`), the command lines' choices and the tests'
+parametrisations are taken from it.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from . import imocs, mocs, mopso, nsga2
-from .base import Algorithm, Population, validate_params
+from .base import Algorithm, Population, coerce, validate_params
 
 __all__ = ["ALGORITHMS", "Algorithm", "Population", "get", "make_params"]
 
@@ -32,9 +33,13 @@ def get(name: str | Algorithm) -> Algorithm:
     return ALGORITHMS[key]
 
 
-def make_params(algorithm: Algorithm, pop_size: int, n_iter: int, **hyper) -> Any:
-    """Build and validate ``algorithm.Params`` (``max_iter`` follows ``n_iter`` where the
-    algorithm has it). Raises ValueError naming an unknown or out-of-range field."""
+def make_params(algorithm: str | Algorithm, pop_size: int, n_iter: int, **hyper) -> Any:
+    """Build and validate the algorithm's ``Params`` (``max_iter`` follows ``n_iter`` where
+    the algorithm has it). A value may be a number or a 1-D array with one value per run
+    (a run axis, :func:`~dockjax.algorithms.base.run_axes`); each is converted to its
+    field's type (:func:`~dockjax.algorithms.base.coerce`: ``2.0`` is the integer 2 for an
+    integer field). Raises ValueError naming an unknown or out-of-range field."""
+    algorithm = get(algorithm)
     fields = algorithm.Params.__dataclass_fields__
     unknown = sorted(set(hyper) - set(fields))
     if unknown:
@@ -42,7 +47,8 @@ def make_params(algorithm: Algorithm, pop_size: int, n_iter: int, **hyper) -> An
             f"unknown hyper-parameter(s) {unknown} for {algorithm.name}; "
             f"allowed: {sorted(set(fields) - {'pop_size', 'max_iter'})}"
         )
-    kwargs = dict(hyper, pop_size=pop_size)
+    kwargs = {k: coerce(algorithm.Params, k, v) for k, v in hyper.items()}
+    kwargs["pop_size"] = pop_size
     if "max_iter" in fields:
         kwargs["max_iter"] = n_iter
     params = algorithm.Params(**kwargs)

@@ -26,7 +26,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import field
-from typing import Any, Callable, NamedTuple, Protocol
+from typing import Any, Callable, NamedTuple, Protocol, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -36,8 +36,9 @@ from .. import checks, pareto
 from ..pytrees import pytree_dataclass, static
 
 __all__ = [
-    "Algorithm", "Population", "param", "validate_params", "pytree_dataclass", "static", "evaluate_unit",
-    "evaluate_runs", "to_natural", "uniform_init_ask", "merge_and_survive", "run", "run_batch",
+    "Algorithm", "Population", "param", "validate_params", "coerce", "run_axes", "n_runs", "stack_params",
+    "broadcast_params", "params_at", "pytree_dataclass", "static", "evaluate_unit", "evaluate_runs", "to_natural",
+    "uniform_init_ask", "merge_and_survive", "run", "run_batch",
 ]
 
 
@@ -151,6 +152,65 @@ def validate_params(params: Any) -> None:
             raise ValueError(f"{what} must be {_rule(meta)}, got {arr.tolist()!r}")
 
 
+def coerce(params_type: type, name: str, value: Any) -> Any:
+    """``value`` of the ``Params`` field ``name`` in the field's own type: an int for an
+    integer field (an integral float such as ``2.0`` is accepted, ``2.5`` is refused), a
+    float otherwise, or a float64 array of them (a run axis). Raises ValueError naming
+    the field and its range."""
+    meta = params_type.__dataclass_fields__[name].metadata
+    what = f"{name} ({meta.get('symbol', name)})"
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iuf" or (arr.dtype.kind == "f" and not np.all(np.isfinite(arr))):
+        raise ValueError(f"{what} must be {_rule(meta)}, got {value!r}")
+    if meta.get("integer"):
+        if arr.ndim or not float(arr) == int(arr):
+            raise ValueError(f"{what} must be {_rule(meta)}, got {value!r}")
+        return int(arr)
+    return arr.astype(np.float64) if arr.ndim else float(arr)
+
+
+def run_axes(params: Any) -> Any:
+    """``vmap``'s ``in_axes`` for a ``Params`` pytree whose leaves may carry a run axis:
+    0 for a leaf with one (shape (runs,)), None for a scalar shared by every run."""
+    return jax.tree_util.tree_map(lambda a: 0 if np.ndim(a) else None, params)
+
+
+def n_runs(params: Any) -> int | None:
+    """The length of the run axis of a ``Params`` pytree (None: every leaf is a scalar).
+    Raises ValueError when leaves disagree or one has more than one axis."""
+    sizes = set()
+    for f in dataclasses.fields(params):
+        if f.metadata.get("static"):
+            continue
+        shape = np.shape(getattr(params, f.name))
+        if len(shape) > 1:
+            raise ValueError(f"{f.name} must be a number or a 1-D array (one value per run), got shape {shape}")
+        sizes.update(shape)
+    if len(sizes) > 1:
+        raise ValueError(f"the per-run hyper-parameters have different lengths {sorted(sizes)}")
+    return sizes.pop() if sizes else None
+
+
+def stack_params(params: Sequence[Any]) -> Any:
+    """One ``Params`` pytree from several (one per run) of the same static fields: every
+    traced leaf gets a run axis, (runs,)."""
+    params = list(params)
+    if not params:
+        raise ValueError("stack_params needs at least one Params")
+    return jax.tree_util.tree_map(lambda *a: np.stack([np.asarray(v, np.float64) for v in a]), *params)
+
+
+def broadcast_params(params: Any, runs: int) -> Any:
+    """``params`` with every traced leaf as a float64 array of shape (runs,)."""
+    return jax.tree_util.tree_map(lambda a: np.broadcast_to(np.asarray(a, np.float64), (runs,)).copy(), params)
+
+
+def params_at(params: Any, i: int) -> Any:
+    """The ``Params`` of run ``i`` of a pytree whose leaves may carry a run axis (scalars
+    as Python floats)."""
+    return jax.tree_util.tree_map(lambda a: float(np.asarray(a)[i]) if np.ndim(a) else a, params)
+
+
 def to_natural(problem, U):
     """Unit box → natural units: ``lower + U (upper − lower)``."""
     lo = jnp.asarray(problem.lower, U.dtype)
@@ -216,14 +276,14 @@ def run_batch(
     params,
     n_iter: int,
     *,
-    overrides: dict | None = None,
     history: Callable | None = None,
     evaluate: Callable | None = None,
 ):
     """A batch of runs (``keys`` (runs,)) of :func:`run` in one ``lax.scan`` (traceable).
 
-    ``overrides`` maps ``Params`` field names to per-run arrays (runs,) (e.g. ρ of a
-    sweep). The algorithm's ``ask`` and ``tell`` are vmapped over the runs, and the
+    ``params`` is the algorithm's ``Params`` pytree; a leaf of shape (runs,) gives every run
+    its own value (e.g. ρ of a sweep, :func:`stack_params`), a scalar is shared. The
+    algorithm's ``ask`` and ``tell`` are vmapped over the runs, and the
     problem's kernel is called once per pass on every run's candidates together (so the
     kernel, not ``vmap``, decides how it walks through them: see
     :func:`dockjax.problem.score_batch`). The kernel appears once in the compiled program
@@ -235,26 +295,23 @@ def run_batch(
     :func:`dockjax.devices.share_rows`). Returns ``(state, trace)`` with the runs on the
     leading axis of every leaf.
     """
-    ov = dict(overrides or {})
     evaluate = evaluate_runs if evaluate is None else evaluate
+    axes = run_axes(params)
 
-    def per_run(f):
-        return jax.vmap(lambda o, *a: f(*a, dataclasses.replace(params, **o) if o else params))
-
-    U0, key0 = per_run(lambda k, p: algorithm.init_ask(k, problem, p))(ov, keys)
+    U0, key0 = jax.vmap(lambda p, k: algorithm.init_ask(k, problem, p), in_axes=(axes, 0))(params, keys)
     runs, n = U0.shape[:2]
-    init_tell = per_run(algorithm.init_tell)
-    ask = per_run(lambda s, p: algorithm.ask(s, problem, p))
-    tell = per_run(algorithm.tell)
+    init_tell = jax.vmap(lambda p, k, pop: algorithm.init_tell(k, pop, p), in_axes=(axes, 0, 0))
+    ask = jax.vmap(lambda p, s: algorithm.ask(s, problem, p), in_axes=(axes, 0))
+    tell = jax.vmap(lambda p, s, pop: algorithm.tell(s, pop, p), in_axes=(axes, 0, 0))
     zeros = lambda m: jnp.zeros((runs, n, m), U0.dtype)  # noqa: E731
     blank = Population(U=U0, F=zeros(problem.n_obj), G=zeros(problem.n_con), cv=zeros(1)[..., 0])
-    state = init_tell(ov, key0, blank)  # a placeholder of the state's shape
+    state = init_tell(params, key0, blank)  # a placeholder of the state's shape
 
     def body(s, i):
         first = i == 0  # not batched, so the conds stay branches
-        U, s = jax.lax.cond(first, lambda s: (U0, s), lambda s: ask(ov, s), s)
+        U, s = jax.lax.cond(first, lambda s: (U0, s), lambda s: ask(params, s), s)
         pop = evaluate(problem, U)
-        s = jax.lax.cond(first, lambda s, p: init_tell(ov, key0, p), lambda s, p: tell(ov, s, p), s, pop)
+        s = jax.lax.cond(first, lambda s, p: init_tell(params, key0, p), lambda s, p: tell(params, s, p), s, pop)
         return s, (jax.vmap(history)(s) if history is not None else None)
 
     state, trace = jax.lax.scan(body, state, jnp.arange(n_iter + 1))

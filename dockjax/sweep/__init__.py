@@ -27,8 +27,8 @@ Files of a study folder::
 Execution. A round's runs (setting, seed) are grouped by compiled program (algorithm,
 population, iterations, static hyper-parameters) and cut into chunks of at most ``chunk``
 runs; one chunk is one compiled, vmapped :func:`dockjax.optimize.optimize` call with every
-run's own hyper-parameters (``batch_params``); a short chunk is padded with repeats of its
-own runs, which are dropped. The CLI asks JAX for one CPU device per usable core and each
+run's own hyper-parameters (a ``Params`` pytree whose leaves carry a run axis); a short
+chunk is padded with repeats of its own runs, which are dropped. The CLI asks JAX for one CPU device per usable core and each
 chunk's runs are sharded over them (bit-identical results; docs/performance.md).
 
 Never losing work. Each finished chunk is written atomically (temporary file in the same

@@ -21,8 +21,10 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from .. import config
+from ..algorithms import make_params
+from ..algorithms.base import stack_params
 from ..metrics import nondominated_points
-from .design import ParamSpec, Setting, build_settings, static_key, traced_params
+from .design import ParamSpec, Setting, build_settings, static_key
 from .files import load_npz
 
 __all__ = ["FORMAT", "PILOT_SEED0", "COLUMNS", "INDICATOR_COLUMNS", "ConfigError", "SweepConfig", "ChunkSpec",
@@ -77,7 +79,8 @@ class SweepConfig:
 @dataclass(frozen=True)
 class ChunkSpec:
     """One compiled call: ``len(seeds)`` runs of one algorithm, population and iteration
-    count (``n_real`` real, the rest padding); ``batch`` the per-run hyper-parameters."""
+    count (``n_real`` real, the rest padding); ``hyper`` every run's named
+    hyper-parameters (its setting's ``params``), the same static ones in every run."""
 
     round: int
     index: int
@@ -85,12 +88,16 @@ class ChunkSpec:
     algorithm: str
     pop: int
     iters: int
-    static_params: tuple[tuple[str, float], ...]
     settings: tuple[int, ...]
     seeds: tuple[int, ...]
-    batch: tuple[tuple[str, tuple[float, ...]], ...]
+    hyper: tuple[tuple[tuple[str, Any], ...], ...]
     n_real: int
     refine_steps: int = 0
+
+    def params(self) -> Any:
+        """The algorithm's ``Params`` of the chunk, every traced leaf with a run axis
+        (:func:`dockjax.algorithms.base.stack_params`)."""
+        return stack_params([make_params(self.algorithm, self.pop, self.iters, **dict(h)) for h in self.hyper])
 
     @property
     def label(self) -> str:
@@ -129,17 +136,16 @@ def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds:
                 groups.setdefault(static_key(s), []).append((i, seed))
     chunks: list[ChunkSpec] = []
     for key, runs in groups.items():
-        algorithm, pop, iters, statics = key
+        algorithm, pop, iters, _ = key
         size = cfg.chunk if cfg.race is not None else _chunk_size(len(runs), cfg.chunk)
         for k in range(0, len(runs), size):
             real = runs[k:k + size]
             padded = [real[j % len(real)] for j in range(size)]
-            names = sorted(traced_params(cfg.settings[padded[0][0]]))
-            batch = tuple((n, tuple(traced_params(cfg.settings[i])[n] for i, _ in padded)) for n in names)
             chunks.append(ChunkSpec(round=round_index, index=len(chunks), preset=cfg.preset, algorithm=algorithm,
-                                    pop=pop, iters=iters, static_params=statics,
-                                    settings=tuple(i for i, _ in padded), seeds=tuple(s for _, s in padded),
-                                    batch=batch, n_real=len(real), refine_steps=cfg.refine_steps))
+                                    pop=pop, iters=iters, settings=tuple(i for i, _ in padded),
+                                    seeds=tuple(s for _, s in padded),
+                                    hyper=tuple(cfg.settings[i].params for i, _ in padded), n_real=len(real),
+                                    refine_steps=cfg.refine_steps))
     return chunks
 
 
@@ -151,8 +157,8 @@ def pilot_spec(cfg: SweepConfig) -> ChunkSpec:
     pop, iters = max(s.pop for s in mine), max(s.iters for s in mine)
     size = min(cfg.chunk, max(2, len(mine) * cfg.seeds))
     return ChunkSpec(round=-1, index=0, preset=cfg.preset, algorithm=first, pop=pop, iters=iters,
-                     static_params=(), settings=(-1,) * size, seeds=tuple(PILOT_SEED0 + i for i in range(size)),
-                     batch=(), n_real=size, refine_steps=cfg.refine_steps)
+                     settings=(-1,) * size, seeds=tuple(PILOT_SEED0 + i for i in range(size)),
+                     hyper=((),) * size, n_real=size, refine_steps=cfg.refine_steps)
 
 
 def _sha256(a: np.ndarray) -> str:

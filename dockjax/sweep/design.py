@@ -16,7 +16,6 @@ allowed range (:func:`dockjax.algorithms.base.validate_params`).
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -26,10 +25,9 @@ import numpy as np
 from scipy.stats import qmc
 
 from .. import algorithms
-from ..algorithms.base import validate_params
+from ..algorithms.base import coerce
 
-__all__ = ["Setting", "ParamSpec", "parse_param", "build_settings", "FIXED_FIELDS", "symbol", "params_of", "static_key",
-           "traced_params", "defaults_of"]
+__all__ = ["Setting", "ParamSpec", "parse_param", "build_settings", "FIXED_FIELDS", "symbol", "static_key"]
 
 FIXED_FIELDS = ("pop_size", "max_iter")
 """``Params`` fields a study sets itself (population and iteration count)."""
@@ -38,7 +36,8 @@ FIXED_FIELDS = ("pop_size", "max_iter")
 @dataclass(frozen=True, order=True)
 class Setting:
     """One configuration of an optimiser. ``params``: sorted ``(field, value)`` pairs of the
-    hyper-parameters that differ from the algorithm's defaults or were named by the study."""
+    hyper-parameters named by the study, each value in its field's type (an int for an
+    integer field, else a float: :func:`dockjax.algorithms.base.coerce`)."""
 
     algorithm: str
     pop: int
@@ -60,8 +59,16 @@ class Setting:
 
     @classmethod
     def from_identity(cls, d: dict) -> "Setting":
+        Params = algorithms.get(str(d["algorithm"])).Params
         return cls(str(d["algorithm"]), int(d["pop"]), int(d["iters"]),
-                   tuple(sorted((str(k), float(v)) for k, v in d["params"].items())))
+                   tuple(sorted((str(k), coerce(Params, str(k), v)) for k, v in d["params"].items())))
+
+    def make_params(self):
+        """The algorithm's ``Params`` of this setting (validated)."""
+        try:
+            return algorithms.make_params(self.algorithm, self.pop, self.iters, **dict(self.params))
+        except ValueError as exc:
+            raise ValueError(f"{self.algorithm}: {exc}") from None
 
     def is_default(self) -> bool:
         """Every named hyper-parameter at the algorithm's default."""
@@ -183,39 +190,20 @@ def build_settings(algorithm_names: Sequence[str], specs: Iterable[ParamSpec], p
         sampled = _samples(ranges, samples, design, seed) if ranges else np.zeros((1, 0))
         grid_values = list(itertools.product(*[sorted(set(s.values)) for s in grids]))
         combos = set()
+        Params = algorithms.get(name).Params
         for g in grid_values:
             for row in sampled:
-                combos.add(tuple(sorted([*zip((s.field for s in grids), g),
-                                         *zip((s.field for s in ranges), map(float, row))])))
+                pairs = [*zip((s.field for s in grids), g), *zip((s.field for s in ranges), map(float, row))]
+                try:
+                    combos.add(tuple(sorted((k, coerce(Params, k, v)) for k, v in pairs)))
+                except ValueError as exc:
+                    raise ValueError(f"{name}: {exc}") from None
         for pop, it in shapes:
             for params in sorted(combos):
                 setting = Setting(name, int(pop), int(it), params)
-                _validate(setting)
+                setting.make_params()  # every value in its field's range
                 out.append(setting)
     return out
-
-
-def _validate(setting: Setting) -> None:
-    algo = algorithms.get(setting.algorithm)
-    kwargs = dict(setting.params)
-    fields = algo.Params.__dataclass_fields__
-    for k, v in kwargs.items():  # integer fields take integers
-        if fields[k].metadata.get("integer") and float(v).is_integer():
-            kwargs[k] = int(v)
-    try:
-        algorithms.make_params(algo, setting.pop, setting.iters, **kwargs)
-    except ValueError as exc:
-        raise ValueError(f"{setting.algorithm}: {exc}") from None
-
-
-def params_of(setting: Setting):
-    """The ``Params`` of a setting (integers where the field is an integer)."""
-    algo = algorithms.get(setting.algorithm)
-    fields = algo.Params.__dataclass_fields__
-    kwargs = {k: (int(v) if fields[k].metadata.get("integer") else v) for k, v in setting.params}
-    params = algorithms.make_params(algo, setting.pop, setting.iters, **kwargs)
-    validate_params(params)
-    return params
 
 
 def static_key(setting: Setting) -> tuple:
@@ -224,15 +212,3 @@ def static_key(setting: Setting) -> tuple:
     fields = algorithms.get(setting.algorithm).Params.__dataclass_fields__
     statics = tuple((k, v) for k, v in setting.params if fields[k].metadata.get("static"))
     return (setting.algorithm, setting.pop, setting.iters, statics)
-
-
-def traced_params(setting: Setting) -> dict[str, float]:
-    """The hyper-parameters a batch of runs varies per run (``optimize(batch_params=)``)."""
-    fields = algorithms.get(setting.algorithm).Params.__dataclass_fields__
-    return {k: v for k, v in setting.params if not fields[k].metadata.get("static")}
-
-
-def defaults_of(algorithm: str) -> dict[str, float]:
-    """The algorithm's default hyper-parameters (the fields a study may vary)."""
-    p = algorithms.get(algorithm).Params()
-    return {f.name: getattr(p, f.name) for f in dataclasses.fields(p) if f.name not in FIXED_FIELDS}

@@ -39,16 +39,13 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
     Dask worker as well.
     """
     t0 = time.perf_counter()
-    batch = {name: np.asarray(values, np.float64) for name, values in spec.batch} or None
-    statics = {k: (int(v) if float(v).is_integer() else v) for k, v in spec.static_params}
     hv_ref = scale = None
     if reference is not None:
         ideal, nadir = np.asarray(reference["ideal"]), np.asarray(reference["nadir"])
         span = np.where(nadir > ideal, nadir - ideal, 1.0)
         hv_ref, scale = ideal + float(reference["hv_ref"]) * span, float(np.prod(span))
-    r = optimize(spec.algorithm, _problem(spec.preset), seeds=np.asarray(spec.seeds, np.int64),
-                 pop_size=spec.pop, n_iter=spec.iters, batch_params=batch, hv_ref=hv_ref,
-                 refine_steps=spec.refine_steps, devices=devices, **statics)
+    r = optimize(spec.algorithm, _problem(spec.preset), params=spec.params(), seeds=np.asarray(spec.seeds, np.int64),
+                 n_iter=spec.iters, hv_ref=hv_ref, refine_steps=spec.refine_steps, devices=devices)
     n = spec.n_real
     fronts = r.fronts()[:n]
     out: dict[str, np.ndarray] = {
