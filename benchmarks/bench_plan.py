@@ -34,10 +34,10 @@ from pathlib import Path
 import numpy as np
 
 from dockjax import config, plots
+from dockjax.best_known import best_known_front
 from dockjax.kinematics import inverse_kinematics
 from dockjax.plan import Planner, plan
 from dockjax.problem import DockingProblem, make_problem
-from dockjax.refine import best_known_front
 from dockjax.solve import least_jerk
 
 RATE = 10_000.0

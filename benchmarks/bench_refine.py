@@ -8,7 +8,7 @@
    100 iterations): median wall time over ``--repeats`` after compile (same compiled shape
    as step 1), and the hypervolume of the front before and after.
 3. The hypervolume of the best-known front beside them (reference point of
-   ``dockjax.comparison.hv_reference``).
+   ``dockjax.best_known.reference_point``).
 """
 
 from __future__ import annotations
@@ -18,12 +18,12 @@ import time
 
 import numpy as np
 
-from dockjax.comparison import hv_reference
+from dockjax.best_known import best_known_cached, reference_point
 from dockjax.config import BEST_KNOWN
 from dockjax.metrics import hypervolume_numpy
 from dockjax.optimize import optimize
 from dockjax.problem import make_problem
-from dockjax.refine import best_known_cached, refine
+from dockjax.refine import refine
 
 
 def main() -> None:
@@ -32,7 +32,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="timed repeats after compile")
     a = ap.parse_args()
     problem = make_problem("paper")
-    ref = hv_reference(problem)
+    ref = reference_point(problem)
 
     t0 = time.perf_counter()
     front = best_known_cached(problem, None, log=lambda m: None)

@@ -36,7 +36,6 @@ __all__ = [
     "control_points",
     "line_control_points",
     "basis_functions",
-    "derivative_control_points",
     "span_coefficients",
     "poly_derivative",
     "poly_eval",
@@ -129,12 +128,6 @@ def _derivative_levels(ctrl, u, order: int):
         q = (p - m + 1) * (q[1:] - q[:-1]) / den[:, None]
         levels.append(q)
     return levels
-
-
-def derivative_control_points(ctrl, u, order: int):
-    """Control points of the ``order``-th derivative spline (Eq. 22, repeated).
-    ctrl: (11, d), u: (17,) → (11 − order, d)."""
-    return _derivative_levels(ctrl, u, order)[-1]
 
 
 def span_coefficients(ctrl, u):

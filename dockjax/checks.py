@@ -12,8 +12,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .config import MAX_RATE
+
 __all__ = ["is_integer", "integer", "optional_integer", "number", "numbers", "vector", "choice", "real_array",
-           "boolean"]
+           "boolean", "rate"]
 
 
 def is_integer(value: Any) -> bool:
@@ -117,3 +119,13 @@ def choice(name: str, value: Any, options: Sequence[str]) -> str:
     if not isinstance(value, str) or value not in options:
         raise ValueError(f"{name} must be one of {', '.join(map(repr, options))}, got {value!r}")
     return value
+
+
+def rate(value: Any, name: str = "rate") -> float:
+    """A servo or sampling rate in Hz: a finite real number in ``(0, config.MAX_RATE]``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a positive number of samples per second, got {value!r}")
+    if float(value) > MAX_RATE:
+        raise ValueError(f"{name} must be at most {MAX_RATE:g} samples per second, got {value!r}")
+    return float(value)

@@ -12,6 +12,7 @@ part of the library it runs, so that ``dockjax plan`` does not load the study ma
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import json
 import math
@@ -25,12 +26,12 @@ from typing import Literal, Sequence
 import numpy as np
 import tyro
 
-from . import config
+from . import checks, config
 from .io import DamagedFileError
 from .runtime import check_memory, claim_devices, enable_compilation_cache, usable_cores, use_cpu_devices
 
 __all__ = ["SweepArgs", "CompareArgs", "PlanArgs", "DemoArgs", "sweep", "compare", "plan", "demo", "main",
-           "demo_main", "exit_with", "describe_failure", "check_out", "TrackArgs", "track"]
+           "exit_with", "describe_failure", "check_out", "TrackArgs", "track"]
 
 Algorithm = Literal["imocs", "mocs", "nsga2", "mopso"]
 Preset = Literal["paper", "wide"]
@@ -167,7 +168,7 @@ def _param_specs(args: SweepArgs):
 def sweep(args: SweepArgs) -> int:
     """Validate (exit 2 before any compilation, without leaving a folder behind), run the
     missing chunks, report."""
-    from .sweep import ConfigError, make_config, prepare_folder, remove_created, report, run_sweep
+    from .sweep import ConfigError, make_config, prepare_folder
 
     errors = [f"{name} must be >= 1, got {v}" for name, v in (("--workers", args.workers), ("--top", args.top))
               if v < 1]
@@ -209,37 +210,49 @@ def sweep(args: SweepArgs) -> int:
         print("note: --rho and --alpha-max apply to IMOCS only")
     enable_compilation_cache()
     t0 = time.perf_counter()
+    code = _run_study(cfg, args.out, created, front=front, backend=args.backend, scheduler=args.scheduler,
+                      workers=args.workers, dask_processes=args.dask_processes, progress=args.progress, top=args.top)
+    if code == 0:
+        print(f"total {time.perf_counter() - t0:.1f} s")
+    return code
+
+
+def _run_study(cfg, out: Path, created: list[Path], *, top: int, extensions=(), **options) -> int:
+    """Run a prepared study folder's missing chunks (:func:`dockjax.sweep.run_sweep`) and
+    report it; the exit code (0, 1 when the work cannot complete, 130 interrupted)."""
+    from .sweep import ConfigError, remove_created, report, run_sweep
+
     try:
-        run_sweep(cfg, args.out, front=front, backend=args.backend, scheduler=args.scheduler,
-                  workers=args.workers, dask_processes=args.dask_processes, progress=args.progress)
+        run_sweep(cfg, out, **options)
     except ConfigError as exc:  # e.g. an unreachable scheduler; nothing was computed
         remove_created(created)
         return _error(str(exc))
     except KeyboardInterrupt:
-        print(f"\ninterrupted: finished chunks are saved in {args.out / 'chunks'}; re-run the same command to resume",
-              file=sys.stderr)
+        done = list((Path(out) / "chunks").glob("round-*.npz"))
+        print("\ninterrupted: " + (f"{len(done)} finished chunks are saved in {out / 'chunks'}; re-run the same "
+                                   "command to resume" if done else "no chunk had finished"), file=sys.stderr)
         return 130
-    except RuntimeError as exc:
-        if created and not any((Path(args.out) / "chunks").glob("round-*.npz")):
+    except RuntimeError as exc:  # e.g. the reference holds no feasible trajectory
+        if created and not any((Path(out) / "chunks").glob("round-*.npz")):
             remove_created(created)
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    report(args.out, top=args.top)
-    print(f"total {time.perf_counter() - t0:.1f} s")
+    report(out, top=top, extensions=extensions)
     return 0
 
 
 # ------------------------------------------------------------------------------ compare
 @dataclass(frozen=True)
 class CompareArgs:
-    """Reproduce the paper's comparison (§5) with statistics: the algorithms × seeds on each preset, indicators
-    against the best-known front, rank-sum tests against IMOCS, Table 3 and Table 4 analogues and the figures,
-    into --out/<preset>/."""
+    """Reproduce the paper's comparison (§5) as a study: the algorithms × seeds on each preset against the best-known
+    front, with the statistics of every sweep (bootstrap intervals, Friedman, Wilcoxon-Holm against the best, A12),
+    plus the paper's indicators, Tables 3 and 4 and its figures, into --out/<preset>/ (a sweep folder: interrupt it
+    and run the command again to resume)."""
 
     out: Path = Path("results/compare")
-    """Results folder (created; one sub-folder per preset)."""
+    """Results folder (created; one study folder per preset)."""
     seeds: int = config.N_SEEDS
-    """Runs per algorithm (seeds 0 .. seeds-1)."""
+    """Runs per algorithm (seeds 0 .. seeds-1, the same for every algorithm)."""
     pop: int = config.POP_SIZE
     """Population size."""
     iters: int = config.N_ITER
@@ -247,86 +260,69 @@ class CompareArgs:
     presets: tuple[Preset, ...] = tuple(config.PRESETS)
     """Problem presets to run."""
     algorithms: tuple[Algorithm, ...] = ("nsga2", "mopso", "mocs", "imocs")
-    """Algorithms to compare (IMOCS is the baseline of the rank-sum tests)."""
+    """Algorithms to compare."""
     refine_steps: int = config.MEMETIC_STEPS
-    """Gradient-refinement steps of the "IMOCS + refine" rows (every IMOCS run's final population polished by
-    dockjax.refine); 0 leaves them out."""
-    best_known: bool = True
-    """Use the best-known front (the shortest time and the least jerk at time caps up to the longest, by SQP
-    and gradient refinement, computed from the problem alone;
-    cached in <out>/<preset>/best_known.npz) as the indicators' reference front; --no-best-known uses the
-    union of the algorithms' final sets instead."""
+    """Gradient-refinement steps of the "IMOCS + refine" setting (every IMOCS run's final population polished by
+    dockjax.refine); 0 leaves it out."""
     best_known_points: int = config.BEST_KNOWN["n_points"]
-    """Time caps of the best-known front's ε-constraint sweep (>= 2)."""
+    """Time caps of the best-known front's ε-constraint sweep (>= 2); the front is cached by problem identity in
+    $DOCKJAX_FRONTS or ~/.cache/dockjax/fronts, shared with dockjax sweep."""
     best_known_steps: int = config.BEST_KNOWN["steps"]
     """Refinement steps per time cap of the best-known front."""
+    top: int = 10
+    """Rows of each summary table printed."""
+    progress: bool = True
+    """Show a progress bar on stderr."""
     devices: int | None = None
     """CPU devices the work is shared over (the order of some floating-point sums depends on the count, so runs
-    agree to rounding at first and may then diverge). Default: one per usable core."""
+    agree to rounding at first and may then diverge; a folder resumes only with its count). Default: one per
+    usable core."""
 
 
 def compare(args: CompareArgs) -> int:
-    """Validate, run every preset's study, write its files."""
-    errors = [f"--{name} must be >= {lo}, got {v}" for name, v, lo in (
-        ("seeds", args.seeds, 1), ("pop", args.pop, 4), ("iters", args.iters, 1),
-        ("refine-steps", args.refine_steps, 0)) if v < lo]
+    """Validate, then run and report each preset's study."""
+    from .sweep import ConfigError, paper_config, paper_tables, prepare_folder
+
+    errors = [f"--{name} must be >= 1, got {v}" for name, v in (("top", args.top),) if v < 1]
     if not args.presets:
         errors.append("--presets must name at least one preset")
-    if not args.algorithms:
-        errors.append("--algorithms must name at least one algorithm")
-    if args.best_known and args.best_known_points < 2:
-        errors.append(f"--best-known-points must be >= 2, got {args.best_known_points}")
-    if args.best_known and args.best_known_steps < 1:
-        errors.append(f"--best-known-steps must be >= 1, got {args.best_known_steps}")
-    if args.devices is not None and args.devices < 1:
-        errors.append(f"--devices must be >= 1, got {args.devices}")
     try:
         check_memory(args.seeds * 2 * args.pop * config.BYTES_PER_CANDIDATE, "--seeds runs at --pop")
         check_out(args.out)
+        checks.optional_integer("--devices", args.devices, 1)
     except ValueError as exc:
         errors.append(str(exc))
-    if not errors:
-        created = not args.out.exists()
+    configs = {}
+    for preset in dict.fromkeys(args.presets):
         try:
-            args.out.mkdir(parents=True, exist_ok=True)
-            probe = args.out / ".write-test"
-            probe.write_text("")
-            probe.unlink()
-        except OSError as exc:
-            errors.append(f"--out {args.out} cannot be written: {exc}")
-            if created and args.out.is_dir() and not any(args.out.iterdir()):
-                args.out.rmdir()
+            configs[preset] = paper_config(preset, seeds=args.seeds, pop=args.pop, iters=args.iters,
+                                           algorithms=args.algorithms, refine_steps=args.refine_steps,
+                                           best_known={"n_points": args.best_known_points,
+                                                       "steps": args.best_known_steps}, devices=None)
+        except ConfigError as exc:
+            errors.append(str(exc))
+            break
     if errors:
-        return _error("; ".join(errors))
-    claim_devices(args.devices)  # before any JAX computation: each device runs its share of the runs
-    from .comparison import refine_rows, run_study, study_right_arm, summary_table, write_study
-    from .problem import make_problem
-    from .refine import best_known_cached
+        return _error("; ".join(dict.fromkeys(errors)))
+    n_devices = claim_devices(args.devices)  # before any JAX computation
+    created: list[Path] = []
+    try:
+        for preset, cfg in configs.items():
+            configs[preset] = cfg = dataclasses.replace(cfg, devices=n_devices)
+            created += prepare_folder(args.out / preset, cfg)
+    except ConfigError as exc:
+        from .sweep import remove_created
 
+        remove_created(created)
+        return _error(str(exc))
     enable_compilation_cache()
     t0 = time.perf_counter()
-    # one right-arm setting and one refinement shape for everything: shared compilations
-    right_arm = study_right_arm(args.presets)
-    rows = refine_rows(args.seeds * args.pop, args.best_known_points)
-    for preset in args.presets:
-        best = None
-        if args.best_known:
-            (args.out / preset).mkdir(parents=True, exist_ok=True)
-            best = best_known_cached(make_problem(preset, right_arm), args.out / preset / "best_known.npz",
-                                     log=lambda m, p=preset: print(f"[{p}] {m}"),
-                                     n_points=args.best_known_points, steps=args.best_known_steps, rows=rows)
-        study = run_study(preset, algorithms=args.algorithms, seeds=range(args.seeds),
-                          pop_size=args.pop, n_iter=args.iters, refine_steps=args.refine_steps,
-                          best_known=best, right_arm=right_arm, refine_rows=rows)
-        t1 = time.perf_counter()
-        files = write_study(study, args.out)
-        print(f"[{preset}] reference front: {study.reference_description}")
-        for row in summary_table(study):
-            print(f"[{preset}] {row['algorithm']:>12}: HV {row['HV_median']:.4f} (IQR {row['HV_iqr']:.4f}, "
-                  f"{100 * row['HV_fraction_median']:.2f} % of the reference's), "
-                  f"IGD {row['IGD_median']:.4f}, GD {row['GD_median']:.5f}, SP {row['SP_median']:.5f}, "
-                  f"ONVG {row['ONVG_median']:.0f}")
-        print(f"[{preset}] wrote {len(files)} files to {args.out / preset} in {time.perf_counter() - t1:.1f} s")
+    for preset, cfg in configs.items():
+        print(f"[{preset}] the paper's comparison: {', '.join(s.name for s in cfg.settings)}; {cfg.seeds} seeds")
+        code = _run_study(cfg, args.out / preset, [p for p in created if p.is_relative_to(args.out / preset)],
+                          top=args.top, extensions=[paper_tables], progress=args.progress)
+        if code:
+            return code
     print(f"wall time: {time.perf_counter() - t0:.1f} s")
     return 0
 
@@ -420,8 +416,6 @@ def plan(args: PlanArgs) -> int:
         check_out(args.out)
     except ValueError as exc:
         return _error(str(exc))
-    if args.out.exists() and not args.out.is_dir():
-        return _error(f"--out {args.out} exists and is not a folder")
     enable_compilation_cache()
     try:
         p = make_plan(problem, weights=weights, rate=args.rate, method=args.method, pop_size=args.pop,
@@ -585,8 +579,6 @@ def track(args: TrackArgs) -> int:
         check_out(args.out)
     except ValueError as exc:
         return _error(str(exc))
-    if args.out.exists() and not args.out.is_dir():
-        return _error(f"--out {args.out} exists and is not a folder")
     use_cpu_devices(1)
     enable_compilation_cache()
     try:
@@ -702,7 +694,3 @@ def console() -> None:
     """The ``dockjax`` console script."""
     exit_with(main())
 
-
-def demo_main() -> None:
-    """The ``dockjax-demo`` console script: ``dockjax demo``."""
-    exit_with(main(["demo", *sys.argv[1:]]))

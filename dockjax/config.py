@@ -50,6 +50,14 @@ POSE_UNITS: tuple[str, ...] = ("mm", "mm", "mm", "deg", "deg", "deg")
 JOINT_NAMES: tuple[str, ...] = ("d_L1", "d_L2", "d_L3", "theta_L", "d_R1", "d_R2", "d_R3", "theta_R")
 JOINT_UNITS: tuple[str, ...] = ("mm", "mm", "mm", "deg", "mm", "mm", "mm", "deg")
 QUANTITIES: tuple[str, ...] = ("travel", "velocity", "acceleration")
+RATE_SUFFIXES: tuple[str, ...] = ("", "/s", "/s^2", "/s^3")
+"""Unit suffix of a quantity's time derivative of order 0..3 (position, velocity, ...)."""
+
+
+def unit(joint: int, order: int = 0) -> str:
+    """The unit of joint ``joint``'s ``order``-th time derivative, e.g. ``"mm/s^2"``."""
+    return JOINT_UNITS[joint] + RATE_SUFFIXES[order]
+
 
 N_INTERVALS = 6
 """Six knot intervals ``h_1..h_6`` (conventions §2)."""
@@ -80,6 +88,11 @@ BEST_KNOWN = dict(n_points=150, n_exact=20, steps=600)
 """Settings of the best-known front used as the comparison's reference front."""
 MEMETIC_STEPS = 100
 """Gradient-refinement steps of the comparison's "IMOCS + refine" rows."""
+PAPER_INDICATORS: dict[str, tuple[float, float, float]] = {
+    "nsga2": (150, 0.0065, 0.0049), "mopso": (36, 0.0220, 0.0420), "mocs": (133, 0.0041, 0.0064),
+    "imocs": (150, 0.0019, 0.0037),
+}
+"""ONVG, GD and SP of the paper's one run per algorithm (§5.2), for the comparison's table."""
 
 # -- one certified plan ---------------------------------------------------------------------
 RATE = 1000.0

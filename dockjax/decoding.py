@@ -17,7 +17,7 @@ from .fusion import materialize
 if TYPE_CHECKING:
     from .problem import DockingProblem
 
-__all__ = ["decode", "span_angles"]
+__all__ = ["decode", "span_angles", "spans"]
 
 
 def decode(problem: "DockingProblem", x):
@@ -45,3 +45,11 @@ def span_angles(c, h):
     """
     mid = bspline.poly_eval(jnp.swapaxes(c[..., 3:5], 1, 2), 0.5 * h[:, None])  # (6, 2)
     return mid, jnp.sin(_DEG * mid), jnp.cos(_DEG * mid)
+
+
+def spans(problem: "DockingProblem", x):
+    """What the kernels need of one candidate: ``h`` (6,), ``u`` (17,), ``c`` (6, 6, 6) of
+    :func:`decode` and the reference angles ``ref`` of :func:`span_angles` (materialised:
+    computed once for every consumer)."""
+    h, u, c = decode(problem, x)
+    return h, u, c, materialize(span_angles(c, h))

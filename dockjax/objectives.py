@@ -22,7 +22,7 @@ from .right_arm import right_terms
 if TYPE_CHECKING:
     from .problem import DockingProblem
 
-__all__ = ["JERK_NODES", "jerk_nodes_for", "jerk", "mean_square_jerk"]
+__all__ = ["JERK_NODES", "jerk_nodes_for", "jerk", "mean_square_jerk", "safe_sqrt"]
 
 
 JERK_NODES = ((1.0, 8), (8.0, 12), (math.inf, 24))
@@ -42,9 +42,19 @@ def jerk_nodes_for(attitude_range: float) -> int:
     return next(n for top, n in JERK_NODES if attitude_range <= top)
 
 
-def jerk(problem: "DockingProblem", c, h, ref):
-    """Sum over the eight joints of the RMS jerk (Eq. 25); see :func:`mean_square_jerk`."""
-    return jnp.sum(jnp.sqrt(mean_square_jerk(problem, c, h, ref)))
+def safe_sqrt(v):
+    """``sqrt(v)`` for ``v > 0`` and 0 elsewhere, with a finite (zero) gradient at 0, where
+    ``jnp.sqrt``'s is infinite (a joint that does not move has zero mean-square jerk)."""
+    pos = v > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, v, 1.0)), 0.0)
+
+
+def jerk(problem: "DockingProblem", c, h, ref, *, differentiable: bool = False):
+    """Sum over the eight joints of the RMS jerk (Eq. 25); see :func:`mean_square_jerk`.
+    ``differentiable``: through :func:`safe_sqrt`, so that gradients stay finite where a
+    joint does not move (refinement, the SQP programmes); the value is the same."""
+    sqrt = safe_sqrt if differentiable else jnp.sqrt
+    return jnp.sum(sqrt(mean_square_jerk(problem, c, h, ref)))
 
 
 def mean_square_jerk(problem: "DockingProblem", c, h, ref):

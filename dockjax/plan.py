@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import shutil
 import tempfile
@@ -31,14 +30,11 @@ from .metrics import nondominated_points
 from .optimize import optimize
 from .problem import DockingProblem
 from .refine import refine as polish
-from .trajectory import Trajectory
+from .solve import PlanError
+from .trajectory import Trajectory, bucket_durations
 from .version import __version__
 
 __all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "load_limits", "write_plan", "METHODS"]
-
-
-class PlanError(RuntimeError):
-    """No candidate passes the certificate; the message names the limit."""
 
 
 @dataclass
@@ -118,16 +114,14 @@ def load_limits(path: str | Path) -> dict:
     return data
 
 
-def _sample_violation(problem: DockingProblem, s: dict) -> tuple[float, str]:
-    """Largest sampled ``|quantity|/limit − 1`` and its name."""
+def _sample_excess(problem: DockingProblem, s: dict) -> np.ndarray:
+    """Sampled ``max |quantity| / limit − 1`` of every limit column (8, 3)."""
     lim = problem.limits
-    vals = np.stack([
+    return np.stack([
         np.max(np.abs(s["position"] - problem.home), 0) / lim[:, 0],
         np.max(np.abs(s["velocity"]), 0) / lim[:, 1],
         np.max(np.abs(s["acceleration"]), 0) / lim[:, 2],
     ], 1) - 1.0
-    j, k = np.unravel_index(np.argmax(vals), vals.shape)
-    return float(vals[j, k]), f"{config.JOINT_NAMES[j]} {config.QUANTITIES[k]}"
 
 
 METHODS = ("direct",) + tuple(ALGORITHMS)
@@ -144,35 +138,6 @@ FD_STEP = 0.01
 """Relative change of a limit in the finite-difference check of its sensitivity."""
 
 
-def _check_rate(rate):
-    if isinstance(rate, bool) or not isinstance(rate, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(rate) or rate <= 0:
-        raise ValueError(f"rate must be a positive number of samples per second, got {rate!r}")
-    if float(rate) > config.MAX_RATE:
-        raise ValueError(f"rate must be at most {config.MAX_RATE:g} samples per second, got {rate!r}")
-    return float(rate)
-
-
-def _no_time_error(problem: DockingProblem) -> PlanError:
-    """The limit that no trajectory of the box can meet, from the straight line slowed as far
-    as the box allows."""
-    x = solve.straight_line(problem, [config.N_INTERVALS * problem.interval_bounds[1]])[0]
-    F, G = problem.evaluate(x[None])
-    G3 = G[0].reshape(8, 3)
-    need = np.stack([np.zeros(8), G3[:, 1] + 1.0, np.sqrt(np.maximum(G3[:, 2] + 1.0, 0.0))], 1)
-    jj, kk = np.unravel_index(np.argmax(np.where(np.isfinite(G3), G3, np.inf)), G3.shape)
-    if G3[:, 0].max() > 0:
-        jj, kk = int(np.argmax(G3[:, 0])), 0
-        extra = f"the straight line already exceeds it by {100 * G3[jj, 0]:.2f} %"
-    else:
-        jj, kk = np.unravel_index(np.argmax(need), need.shape)
-        extra = (f"even the straight line would need T >= {F[0, 0] * need[jj, kk]:.4g} s, beyond the longest "
-                 f"T = {F[0, 0]:g} s the interval bounds {problem.interval_bounds} allow")
-    unit = config.JOINT_UNITS[jj] + ["", "/s", "/s^2"][kk]
-    return PlanError(f"no trajectory meets the limit {config.JOINT_NAMES[jj]} {config.QUANTITIES[kk]} "
-                     f"({problem.limits[jj, kk]:g} {unit}): {extra}")
-
-
 def _shortest(problem: DockingProblem, x0=None) -> solve.Solution:
     """The shortest-time solution, the least jerk among the shortest
     (:func:`dockjax.solve.shortest`), from ``x0`` (default: the straight line at the
@@ -181,7 +146,7 @@ def _shortest(problem: DockingProblem, x0=None) -> solve.Solution:
         x0 = solve.straight_line(problem, [config.N_INTERVALS * problem.interval_bounds[0]])[0]
     sol = solve.shortest(problem, x0)
     if sol is None:
-        raise _no_time_error(problem)
+        raise solve.infeasibility(problem)
     return sol
 
 
@@ -205,15 +170,13 @@ def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
     m = res.front[0]
     if not m.any():
         j = int(np.argmin(res.cv[0]))
-        G = res.G[0][j].reshape(8, 3)
+        G = res.G[0][j].reshape(config.N_JOINTS, 3)
         jj, kk = np.unravel_index(np.argmax(G), G.shape)
-        raise PlanError(
-            f"no feasible trajectory found by {method}: the limit {config.JOINT_NAMES[jj]} "
-            f"{config.QUANTITIES[kk]} ({problem.limits[jj, kk]:g} "
-            f"{config.JOINT_UNITS[jj]}{['', '/s', '/s^2'][kk]}) cannot be met "
+        raise PlanError.of_column(
+            problem, int(jj), int(kk), f"no feasible trajectory found by {method}: the limit {{limit}} cannot be met "
             f"(best candidate exceeds it by {100 * G[jj, kk]:.1f} %; T is at most "
-            f"{6 * problem.interval_bounds[1]:g} s with interval bounds {problem.interval_bounds})"
-        )
+            f"{config.N_INTERVALS * problem.interval_bounds[1]:g} s with interval bounds {problem.interval_bounds})",
+            excess=float(G[jj, kk]))
     F, X = res.F[0][m], res.X[0][m]
     F, idx = nondominated_points(F, return_index=True)
     X = X[idx]
@@ -226,13 +189,18 @@ def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
     return X, F
 
 
-def _certify(problem: DockingProblem, x, rate: float):
-    """``(samples, violation, name)``: the trajectory sampled at ``rate`` and its largest
-    sampled or kernel excess over a limit (<= 0: certified)."""
+def _certify(problem: DockingProblem, x, rate: float) -> dict:
+    """The trajectory of ``x`` sampled at ``rate``, once certified: every sampled quantity
+    and every kernel column (never understated) within its limit, else :class:`PlanError`
+    naming the worst column."""
     s = problem.decode(x).sample(rate)
-    v, name = _sample_violation(problem, s)
-    g = problem.evaluate(np.asarray(x)[None], screen=False)[1][0]
-    return s, max(v, float(g.max())), name
+    g = problem.evaluate(np.asarray(x)[None], screen=False)[1][0].reshape(config.N_JOINTS, 3)
+    excess = np.maximum(_sample_excess(problem, s), g)
+    if excess.max() > 0:
+        j, k = np.unravel_index(np.argmax(excess), excess.shape)
+        raise PlanError.of_column(problem, int(j), int(k), "the chosen trajectory fails {limit} by "
+                                  f"{100 * excess[j, k]:.2f} % (certificate)", excess=float(excess[j, k]))
+    return s
 
 
 def _resolve(problem, sol: solve.Solution, cap):
@@ -266,7 +234,7 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
         series = {0: np.abs(samples["position"][:, j] - problem.home[j]), 1: np.abs(samples["velocity"][:, j]),
                   2: np.abs(samples["acceleration"][:, j])}[k]
         row = {"limit": f"{name} {config.QUANTITIES[k]}", "joint": name, "quantity": config.QUANTITIES[k],
-               "value": float(lim[j, k]), "unit": config.JOINT_UNITS[j] + ["", "/s", "/s^2"][k],
+               "value": float(lim[j, k]), "unit": config.unit(j, k),
                "ratio": float(G[j, k] + 1.0), "time_s": float(samples["t"][int(np.argmax(series))]),
                "sensitivity": float(sens[j, k])}
         if check:
@@ -296,7 +264,7 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
 
 def _check_common(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front):
     w = select.check_weights(weights, 2)
-    rate = _check_rate(rate)
+    rate = checks.rate(rate)
     checks.choice("method", method, METHODS)
     checks.integer("pop_size", pop_size, 4)
     checks.integer("n_iter", n_iter, 1)
@@ -347,9 +315,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
             if chosen is None:
                 raise PlanError(f"the least-jerk solve at T = {F[j, 0]:.6g} s found no certified trajectory")
         front_F = np.concatenate([F, chosen.F[None], shortest.F[None]])
-    samples, v, name = _certify(problem, chosen.x, rate)
-    if v > 0:
-        raise PlanError(f"the chosen trajectory fails {name} by {100 * v:.2f} % (certificate)")
+    samples = _certify(problem, chosen.x, rate)
     time_only = chosen is shortest
     why = explain(problem, chosen, samples, time_optimal=time_only, check=check_sensitivities)
     settings = {"weights": list(map(float, w)), "rate": rate, "method": method, "n_front": n_front,
@@ -383,7 +349,7 @@ class Planner:
         self.problem = problem or DockingProblem()
         if not isinstance(self.problem, DockingProblem):
             raise ValueError(f"problem must be a DockingProblem, got {type(self.problem).__name__}")
-        self.rate = _check_rate(rate)
+        self.rate = checks.rate(rate)
         self.n_front = checks.integer("n_front", n_front, 2, 200)
         self.max_iter = checks.integer("max_iter", max_iter, 1)
         self._template: np.ndarray | None = None
@@ -405,11 +371,9 @@ class Planner:
             shortest, front = _direct_front(self.problem, self.n_front)
             self._template = np.array([shortest.x] + [s.x for s in front])
             solve.min_jerk(self.problem, front[0].x, float(front[0].F[0]), max_iter=self.max_iter)
-            # samples are computed in power-of-two buckets: one trajectory per bucket compiles them all
+            # samples are computed in buckets of lengths: one trajectory per bucket compiles them all
             t_lo, t_hi = (config.N_INTERVALS * b for b in self.problem.interval_bounds)
-            sizes = {max(1024, 1 << max(int(t * self.rate), 1).bit_length()) for t in np.linspace(t_lo, t_hi, 64)}
-            for size in sorted(sizes):
-                T = min(max((size // 2 + 1) / self.rate, t_lo), t_hi)
+            for T in bucket_durations(t_lo, t_hi, self.rate):
                 self.problem.decode(solve.straight_line(self.problem, [T])[0]).sample(self.rate)
             self.plan(self.problem.start, self.problem.goal)  # compiles the replanning path once
         return self
@@ -422,11 +386,9 @@ class Planner:
         problem = self._problem_for(start, goal)
         self.warm()
         X = solve.map_to(problem, self.problem, self._template)
-        F, G = problem.evaluate(X)
-        G3 = G.reshape(len(X), 8, 3)
-        need = np.maximum(1.0, np.maximum(G3[:, :, 1].max(1) + 1.0, np.sqrt(np.maximum(G3[:, :, 2].max(1) + 1.0,
-                                                                                        0.0))))
-        ok = G3[:, :, 0].max(1) <= 0
+        _, G = problem.evaluate(X)
+        need = solve.scaling_need(G)
+        ok = G.reshape(len(X), config.N_JOINTS, 3)[:, :, 0].max(1) <= 0
         X = np.array([solve.time_scale(problem, x, s * (1 + 1e-9)) for x, s in zip(X, need)])
         ok &= np.all(X[:, : config.N_INTERVALS] <= problem.upper[: config.N_INTERVALS], 1)
         if not ok.any():
@@ -439,9 +401,7 @@ class Planner:
             sol = solve.min_jerk(problem, X[j], float(Fs[j, 0]), max_iter=self.max_iter, restarts=0)
         if sol is None:
             raise PlanError("the warm solve found no certified trajectory")
-        samples, v, name = _certify(problem, sol.x, self.rate)
-        if v > 0:
-            raise PlanError(f"the chosen trajectory fails {name} by {100 * v:.2f} % (certificate)")
+        samples = _certify(problem, sol.x, self.rate)
         why = explain(problem, sol, samples, time_optimal=w[1] == 0, check=False)
         settings = {"weights": list(map(float, w)), "rate": self.rate, "method": "planner", "n_front": self.n_front}
         return Plan(problem, problem.decode(sol.x), sol.x, float(sol.F[0]), float(sol.F[1]),

@@ -28,8 +28,7 @@ import numpy as np
 
 from . import checks, config, extrema
 from . import devices as dev
-from .decoding import decode, span_angles
-from .fusion import materialize
+from .decoding import decode, span_angles, spans
 from .kinematics import inverse_kinematics
 from .limits import BOUND_TOLERANCE, SCREEN_BAND, columns, maxima, maxima_screened
 from .objectives import jerk, jerk_nodes_for
@@ -270,7 +269,8 @@ class DockingProblem:
         return arr
 
     def evaluate(
-        self, X, *, precision: str = "float64", screen: bool = True, devices: int | None = None
+        self, X, *, precision: str = "float64", screen: bool = True, devices: int | None = None,
+        rows: int | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Score a population in one compiled call.
 
@@ -282,9 +282,17 @@ class DockingProblem:
         instead of exact near its limit (within 5 %) and at most 0.009 above the truth
         elsewhere (conventions §6 allows 0.01); see :func:`score_batch`. ``devices``: how many of
         JAX's local devices share the rows (default all, at most one per
-        :data:`ROWS_PER_DEVICE` rows; see :mod:`dockjax.devices`).
+        :data:`ROWS_PER_DEVICE` rows; see :mod:`dockjax.devices`). ``rows``: score in calls
+        of exactly that many rows (the last one padded), so that every call of one ``rows``
+        shares one compiled program; default one call, padded to :func:`bucket_rows`.
         """
         arr = self.check_population(X)
+        checks.optional_integer("rows", rows, 1)
+        if rows is not None and len(arr) > 0:
+            parts = [self.evaluate(pad_rows(arr[i:i + rows], rows), precision=precision, screen=screen,
+                                   devices=devices) for i in range(0, len(arr), rows)]
+            n = [len(arr[i:i + rows]) for i in range(0, len(arr), rows)]
+            return tuple(np.concatenate([p[k][:m] for p, m in zip(parts, n)]) for k in (0, 1))
         if precision not in ("float64", "float32"):
             raise ValueError(f"precision must be 'float64' or 'float32', got {precision!r}")
         if not isinstance(screen, (bool, np.bool_)):
@@ -340,16 +348,14 @@ def make_problem(preset: str, right_arm: str = "auto") -> DockingProblem:
 def _score(problem: DockingProblem, x, screen: bool = False):
     """F (2,), G (24,), the adaptive mode's ``need`` flag and the screen's ``over`` flag of
     one candidate (``screen``: :func:`dockjax.limits.maxima_screened` instead of :func:`dockjax.limits.maxima`)."""
-    h, u, c = decode(problem, x)
-    T = jnp.sum(h)
-    ref = materialize(span_angles(c, h))
-    F = jnp.stack([T, jerk(problem, c, h, ref)])
+    h, _, c, ref = spans(problem, x)
+    F = jnp.stack([jnp.sum(h), jerk(problem, c, h, ref)])
     if screen and problem.right_arm != "taylor":
-        M, need, over, spans = maxima_screened(problem, c, h, ref)
+        M, need, over, series = maxima_screened(problem, c, h, ref)
     else:
         M, need = maxima(problem, c, h, ref, with_need=True, screen=screen)
-        over, spans = jnp.zeros((), bool), None
-    return F, columns(problem, M), need, over, spans
+        over, series = jnp.zeros((), bool), None
+    return F, columns(problem, M), need, over, series
 
 
 def score(problem: DockingProblem, x):

@@ -1,4 +1,4 @@
-"""Gradient polishing of candidate trajectories, and a best-known front (conventions §3, §5, §6).
+"""Gradient polishing of candidate trajectories (conventions §3, §5, §6).
 
 :func:`refine` takes a set of candidates ``X`` (n, n_var) and, for every point i at once,
 solves the sub-problem
@@ -33,23 +33,17 @@ recompile).
   (it wins under Deb's constraint-domination, conventions §6) and the lowest-jerk one is kept.
   A point for which nothing qualifies is returned unchanged with ``improved`` False.
 
-:func:`best_known_front` is an ε-constraint sweep over ``T`` from the shortest feasible time
-to ``6 h_hi``: anchors solved by sequential quadratic programming (:mod:`dockjax.solve`) and
-a dense set of caps polished from them by the same machinery as :func:`refine`. It never
-sees any optimiser's front: it depends only on the problem, so it is an independent
-yardstick for the optimisers' fronts.
+:func:`polish` is the same loop under given time caps (the best-known front's
+ε-constraint sweep, :mod:`dockjax.best_known`).
 
 Everything runs in float64 inside ``jax.enable_x64(True)``.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -57,17 +51,12 @@ import numpy as np
 import optax
 
 from . import checks, config
-from .decoding import decode, span_angles
-from .fusion import materialize
-from .io import DamagedFileError, atomic_savez, load_npz
+from .decoding import spans
 from .limits import columns, maxima, maxima_screened
-from .metrics import nondominated_points
-from .objectives import mean_square_jerk
+from .objectives import jerk
 from .problem import DockingProblem, bucket_rows, pad_rows
-from .solve import least_jerk_front, straight_line
-from .solve import shortest as shortest_time
 
-__all__ = ["RefineResult", "FrontResult", "refine", "best_known_front", "objectives_safe", "straight_line"]
+__all__ = ["RefineResult", "refine", "polish", "check_settings", "objectives_safe"]
 
 
 @dataclass(frozen=True)
@@ -93,33 +82,7 @@ class RefineResult:
     seconds: float
 
 
-@dataclass(frozen=True)
-class FrontResult:
-    """Output of :func:`best_known_front`: the non-dominated feasible points, sorted by T.
-
-    ``X`` (m, n_var), ``F`` (m, 2), ``G`` (m, 24); ``targets`` the swept time caps.
-    """
-
-    X: np.ndarray
-    F: np.ndarray
-    G: np.ndarray
-    targets: np.ndarray
-    seconds: float
-
-
-# -- objective with a NaN-safe jerk ------------------------------------------------------
-
-
-def _safe_sqrt(v):
-    pos = v > 0
-    return jnp.where(pos, jnp.sqrt(jnp.where(pos, v, 1.0)), 0.0)
-
-
-def _safe_jerk(problem, c, h, ref):
-    """As ``problem._jerk`` (conventions §5, Eq. 25) with a square root whose gradient is finite
-    (0) where a joint's mean-square jerk is 0."""
-    ms = mean_square_jerk(problem, c, h, ref)
-    return jnp.sum(_safe_sqrt(ms))
+# -- the scores with a NaN-safe jerk -------------------------------------------------------
 
 
 def objectives_safe(problem: DockingProblem, x, screen: bool = False):
@@ -131,16 +94,15 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
     throughout (never understated, so safe to certify with, but it may overstate more;
     the Taylor models' subdivision loop has no reverse-mode derivative; :func:`refine`
     re-scores its results with the kernel). ``screen=True``: the limits by the screen of
-    :func:`dockjax.problem._maxima_screened` without its overflow pass — columns near their
+    :func:`dockjax.limits.maxima_screened` without its overflow pass — columns near their
     limits exact with exact gradients (envelope theorem), the others rigorous upper bounds.
     Measured on the default problem it saves little in refinement (3.75 against 4.13 s for
     150 points × 200 steps; the backward pass dominates) and lands a hair lower in HV, so
     refinement keeps the full chain."""
     if problem.right_arm == "taylor":
         problem = problem.with_right_arm("bound")
-    h, _, c = decode(problem, x)
-    ref = materialize(span_angles(c, h))
-    F = jnp.stack([jnp.sum(h), _safe_jerk(problem, c, h, ref)])
+    h, _, c, ref = spans(problem, x)
+    F = jnp.stack([jnp.sum(h), jerk(problem, c, h, ref, differentiable=True)])
     if screen:
         M = maxima_screened(problem, c, h, ref)[0]
     else:
@@ -230,70 +192,59 @@ _CHUNK = 256
 _score_rows = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))
 
 
-def _check_common(problem, steps, learning_rate, penalty, margin):
+def check_settings(problem, steps, learning_rate, penalty, margin, rows=None) -> None:
+    """ValueError naming the argument unless the polishing settings are usable (a
+    :class:`DockingProblem`, ``steps >= 1``, positive rates, ``0 <= margin < 0.5``,
+    ``rows`` None or >= 1)."""
     if not isinstance(problem, DockingProblem):
         raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
     checks.integer("steps", steps, 1)
     checks.number("learning_rate", learning_rate, 0.0, open_lo=True)
     checks.number("penalty", penalty, 0.0, open_lo=True)
     checks.number("margin", margin, 0.0, 0.5, open_hi=True)
-
-
-def _bucket(n: int) -> int:
-    """Rows per compiled call: the kernel's bucket (:func:`dockjax.problem.bucket_rows`),
-    at most :data:`_CHUNK` (larger batches go in chunks of _CHUNK)."""
-    return min(_CHUNK, bucket_rows(n))
-
-
-def _check_rows(rows):
     checks.optional_integer("rows", rows, 1)
 
 
-def _evaluate(problem, X, rows=None):
-    """``problem.evaluate(X)``; with ``rows``, in calls of exactly ``rows`` rows (the last one
-    padded with copies of its first row), so that every call shares one compiled shape."""
-    if rows is None or len(X) == 0:
-        return problem.evaluate(X)
-    parts = []
-    for i in range(0, len(X), rows):
-        part = X[i:i + rows]
-        F, G = problem.evaluate(pad_rows(part, rows))
-        parts.append((F[:len(part)], G[:len(part)]))
-    return tuple(np.concatenate(a) for a in zip(*parts))
+def polish(problem: DockingProblem, X, caps, *, steps: int = 200, learning_rate: float = 0.05,
+           penalty: float = 10.0, margin: float = 1e-4, rows: int | None = None):
+    """Every row of X (n, n_var) polished under ``T ≤ caps[i]`` (n,) by the projected Adam
+    loop of the module docstring, in calls of one compiled shape (``rows`` rows, default
+    the kernel's bucket of n, at most 256). A kernel-feasible input row is the incumbent,
+    so only strict jerk improvements replace it.
 
-
-def _run(problem, X, cap, steps, learning_rate, penalty, margin, keep_input, rows=None):
-    """Shared driver: polish X (n, d) under ``T ≤ cap`` (n,), in chunks of one compiled
-    shape (``rows``, default :func:`_bucket`); see :func:`_run_chunk`."""
+    Returns ``(X_best, F_best, G_best, found, nonfinite_steps)``: per row the best
+    qualifying iterate (feasible by the loop's own scores, :func:`objectives_safe`, never
+    understated; ``T ≤ cap``; lowest jerk) or the input where none qualified (``found``
+    False), and the count of steps with a non-finite gradient. Not re-scored by the
+    problem's kernel: callers that certify do that (:func:`refine`)."""
     n = X.shape[0]
-    size = _bucket(n) if rows is None else int(rows)
-    parts = [_run_chunk(problem, X[i:i + size], cap[i:i + size], size, steps, learning_rate, penalty,
-                        margin, keep_input) for i in range(0, n, size)]
-    return tuple(np.concatenate(a) for a in zip(*parts))
+    size = min(_CHUNK, bucket_rows(n)) if rows is None else int(rows)
+    parts = [_polish_chunk(problem, X[i:i + size], caps[i:i + size], size, steps, learning_rate, penalty, margin)
+             for i in range(0, n, size)]
+    jb, xb, fb, gb, nbad = (np.concatenate(a) for a in zip(*parts))
+    return xb, fb, gb, np.isfinite(jb), nbad
 
 
-def _run_chunk(problem, X, cap, size, steps, learning_rate, penalty, margin, keep_input):
-    """Polish X (n ≤ size, d) under ``T ≤ cap`` (n,); when keep_input, the input row is the
-    incumbent if kernel-feasible (so only strict jerk improvements are taken)."""
+def _polish_chunk(problem, X, cap, size, steps, learning_rate, penalty, margin):
+    """:func:`polish` of X (n ≤ size, d) padded to ``size`` rows (one compiled shape)."""
     n = X.shape[0]
-    X, cap = pad_rows(X, size), pad_rows(cap, size)  # one compiled shape per bucket
+    X, cap = pad_rows(X, size), pad_rows(cap, size)
     with jax.enable_x64(True):
         Xj = jnp.asarray(X)
         F0, G0 = _score_rows(problem, Xj)
         F0, G0 = np.asarray(F0), np.asarray(G0)
         feas0 = np.all(G0 <= 0, 1) & (F0[:, 0] <= cap)
         j_scale = np.where(np.isfinite(F0[:, 1]) & (F0[:, 1] > 0), F0[:, 1], 1.0)
-        j0 = np.where(feas0 & keep_input, F0[:, 1], np.inf)
+        j0 = np.where(feas0, F0[:, 1], np.inf)
         lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
         U0 = np.clip((X - lo) / (hi - lo), 0.0, 1.0)
-        jb, xb, fb, gb, nbad = _polish(
+        out = _polish(
             problem, jnp.asarray(U0), jnp.asarray(cap), jnp.asarray(j_scale), jnp.asarray(int(steps)),
             jnp.asarray(float(learning_rate)), jnp.asarray(0.01 * float(learning_rate)),
             jnp.asarray(float(penalty)), jnp.asarray(10.0 * float(penalty)), jnp.asarray(float(margin)),
             jnp.asarray(j0), Xj, jnp.asarray(F0), jnp.asarray(G0),
         )
-        out = (F0, G0, np.asarray(jb), np.asarray(xb), np.asarray(fb), np.asarray(gb), np.asarray(nbad))
-    return tuple(a[:n] for a in out)
+    return tuple(np.asarray(a)[:n] for a in out)
 
 
 def refine(
@@ -317,24 +268,24 @@ def refine(
     kernel's bucket of n, at most 256; calls of one ``rows`` share a compiled program).
     Raises ValueError on bad input.
     """
-    _check_common(problem, steps, learning_rate, penalty, margin)
-    _check_rows(rows)
+    check_settings(problem, steps, learning_rate, penalty, margin, rows)
     X = problem.check_population(X)
     if X.shape[0] == 0:
         raise ValueError("X must have at least one row")
     t0 = time.perf_counter()
-    _, _, jb, xb, fb, gb, nbad = _run(problem, X, X[:, : config.N_INTERVALS].sum(1), steps,
-                                      learning_rate, penalty, margin, keep_input=True, rows=rows)
-    found = np.isfinite(jb) & ~np.all(xb == X, 1)
+    T = X[:, : config.N_INTERVALS].sum(1)
+    xb, fb, gb, found, nbad = polish(problem, X, T, steps=steps, learning_rate=learning_rate, penalty=penalty,
+                                     margin=margin, rows=rows)
+    found &= ~np.all(xb == X, 1)
     # the kernel has the last word (in the "adaptive" right-arm mode the loop used the
     # bound path, which never understates but may overstate more): a refined row is kept
     # only if the kernel finds it feasible, no longer, and — for a feasible input — of
     # strictly lower jerk
-    F0, G0 = _evaluate(problem, X, rows)
+    F0, G0 = problem.evaluate(X, rows=rows)
     if found.any():
-        Fk, Gk = _evaluate(problem, xb[found], rows)
+        Fk, Gk = problem.evaluate(xb[found], rows=rows)
         feas_in = np.all(G0[found] <= 0, 1)
-        ok = (np.all(Gk <= 0, 1) & (Fk[:, 0] <= X[found, : config.N_INTERVALS].sum(1) * (1 + 1e-12))
+        ok = (np.all(Gk <= 0, 1) & (Fk[:, 0] <= T[found] * (1 + 1e-12))
               & (~feas_in | (Fk[:, 1] < F0[found, 1])))
         fb[found], gb[found] = Fk, Gk
         found[np.flatnonzero(found)[~ok]] = False
@@ -346,96 +297,3 @@ def refine(
         nonfinite_steps=nbad,
         seconds=time.perf_counter() - t0,
     )
-
-
-def best_known_front(
-    problem: DockingProblem,
-    *,
-    n_points: int = 150,
-    n_exact: int = 20,
-    line: bool = False,
-    steps: int = 600,
-    learning_rate: float = 0.05,
-    penalty: float = 10.0,
-    margin: float = 1e-4,
-    rows: int | None = None,
-) -> FrontResult:
-    """An ε-constraint sweep of T from the shortest feasible time to ``6 h_hi``.
-
-    1. The shortest time, and the least jerk at ``n_exact`` caps from it to ``6 h_hi``
-       (quadratically spaced: dense where the front is steep), by sequential quadratic
-       programming (:func:`dockjax.solve.shortest`, :func:`dockjax.solve.least_jerk_front`;
-       by continuation, and with ``line`` from the straight line too): the anchors.
-    2. ``n_points`` caps evenly spaced over the same range, each started from the anchor
-       just below it slowed to the cap (feasible, by exact time scaling) and polished in one
-       batch by the machinery of :func:`refine` (``steps``, ``learning_rate``, ``penalty``,
-       ``margin``, ``rows`` as there): a dense front at the anchors' quality.
-
-    Returns the kernel-feasible non-dominated points of both, sorted by T; ``targets`` the
-    caps of step 2. Computed from the problem alone, without seeing any optimiser's front.
-    """
-    _check_common(problem, steps, learning_rate, penalty, margin)
-    _check_rows(rows)
-    checks.integer("n_points", n_points, 2)
-    checks.integer("n_exact", n_exact, 2)
-    t0 = time.perf_counter()
-    n = config.N_INTERVALS
-    shortest = shortest_time(problem, straight_line(problem, [n * problem.interval_bounds[0]])[0])
-    if shortest is None:
-        raise ValueError("no trajectory of the decision box meets the limits")
-    t_max = n * problem.interval_bounds[1]
-    caps = shortest.F[0] + (t_max - shortest.F[0]) * np.linspace(0.0, 1.0, int(n_exact) + 1)[1:] ** 2
-    anchors = [shortest] + least_jerk_front(problem, shortest, caps, line=line)
-    TA = np.array([a.F[0] for a in anchors])
-    XA = np.array([a.x for a in anchors])
-    targets = np.linspace(shortest.F[0], t_max, int(n_points))
-    k = np.clip(np.searchsorted(TA, targets, side="right") - 1, 0, len(TA) - 1)
-    X = XA[k].copy()
-    X[:, :n] *= (targets / TA[k])[:, None]
-    X = np.clip(X, problem.lower, problem.upper)
-    _, _, jb, xb, fb, gb, _ = _run(problem, X, targets, steps, learning_rate, penalty, margin, keep_input=True,
-                                   rows=rows)
-    ok = np.isfinite(jb) & np.all(gb <= 0, 1)
-    Xf = np.concatenate([XA, xb[ok]])
-    Ff, Gf = _evaluate(problem, Xf, rows)  # the kernel's word
-    feas = np.all(Gf <= 0, 1)
-    Xf, Ff, Gf = Xf[feas], Ff[feas], Gf[feas]
-    _, order = nondominated_points(Ff, return_index=True)  # distinct, sorted by T
-    return FrontResult(X=Xf[order], F=Ff[order], G=Gf[order], targets=targets,
-                       seconds=time.perf_counter() - t0)
-
-
-BEST_KNOWN_FORMAT = 3
-"""Version of the best-known front's computation: part of the key of a cached front."""
-
-
-def best_known_key(problem: DockingProblem, **settings) -> str:
-    """The identity of a best-known front: the problem's fields, the settings (default
-    :data:`dockjax.config.BEST_KNOWN`) and :data:`BEST_KNOWN_FORMAT`, as sorted JSON."""
-    settings = {**config.BEST_KNOWN, **settings}
-    settings.pop("rows", None)
-    return json.dumps({"format": BEST_KNOWN_FORMAT, "problem": problem.identity(), **settings}, sort_keys=True)
-
-
-def best_known_cached(problem: DockingProblem, path=None, log=print, **settings) -> FrontResult:
-    """:func:`best_known_front` of ``problem`` (settings default to
-    :data:`dockjax.config.BEST_KNOWN`), reused from ``path`` (an ``.npz``; a folder: a file
-    named by the key's hash inside it) when that file was written for the same problem and
-    settings (:func:`best_known_key`), else computed and written there atomically."""
-    key = best_known_key(problem, **settings)
-    if path is not None and Path(path).is_dir():
-        path = Path(path) / f"best-known-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
-    if path is not None and Path(path).exists():
-        try:
-            d = load_npz(path)
-            if str(d["key"]) == key:
-                log(f"best-known front: {len(d['F'])} points from {path}")
-                return FrontResult(X=d["X"], F=d["F"], G=d["G"], targets=d["targets"], seconds=float(d["seconds"]))
-        except (DamagedFileError, KeyError):
-            log(f"best-known front: {path} is damaged; computed again")
-    front = best_known_front(problem, **{**config.BEST_KNOWN, **settings})
-    log(f"best-known front: {len(front.F)} points in {front.seconds:.1f} s (compile included)")
-    if path is not None:
-        atomic_savez(path, {"X": front.X, "F": front.F, "G": front.G, "targets": front.targets,
-                            "seconds": front.seconds, "key": np.array(key)})
-    return front

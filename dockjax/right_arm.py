@@ -27,14 +27,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import bspline, config, extrema, jets, kinematics
+from . import bspline, config, extrema, kinematics
 from .config import DEG as _DEG
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
 
 __all__ = [
-    "right_terms", "right_jets", "hessian_norms", "remainder_bound", "linearisation_remainders",
+    "right_terms", "hessian_norms", "remainder_bound", "linearisation_remainders",
     "bound_overstatement", "right_taylor_maxima",
 ]
 
@@ -56,11 +56,6 @@ def right_terms(problem: "DockingProblem", c, tau, order: int, ref) -> list:
     joints = [kinematics.arm_joints(x, y, z, 0.0, ux, uy, uz, problem.arm_distance)
               for x, y, z, ux, uy, uz in zip(pose[0], pose[1], pose[2], *axis)]
     return [[j[4 + r] for j in joints] for r in range(3)]
-
-
-def right_jets(problem: "DockingProblem", c, tau, order: int, ref):
-    """:func:`right_terms` stacked: (s, m, 3 joints, order + 1)."""
-    return jnp.stack([jets.stack(j) for j in right_terms(problem, c, tau, order, ref)], axis=-2)
 
 
 def hessian_norms(sin_a, sin_b):

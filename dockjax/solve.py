@@ -39,15 +39,16 @@ from scipy.optimize import minimize
 
 from . import config, extrema
 from .bspline import poly_derivative, poly_eval
-from .decoding import decode, span_angles
+from .decoding import spans
 from .fusion import materialize
 from .limits import joint_series
-from .objectives import mean_square_jerk
+from .objectives import jerk
 from .problem import DockingProblem
 from .right_arm import linearisation_remainders
 
-__all__ = ["Solution", "candidate_limits", "critical_times", "straight_line", "least_jerk", "least_jerk_front",
-           "map_to", "min_time", "min_jerk", "shortest", "certify_scaling", "sensitivities", "time_scale"]
+__all__ = ["Solution", "PlanError", "candidate_limits", "critical_times", "straight_line", "least_jerk",
+           "least_jerk_front", "map_to", "min_time", "min_jerk", "shortest", "certify_scaling", "infeasibility",
+           "scaling_need", "scaling_needs", "sensitivities", "time_scale"]
 
 
 N_CANDIDATES = config.N_INTERVALS * 8 * 15
@@ -79,22 +80,11 @@ class Solution:
 # -- the programmes' functions (jitted once per problem shape) ---------------------------------
 
 
-def _safe_sqrt(v):
-    pos = v > 0
-    return jnp.where(pos, jnp.sqrt(jnp.where(pos, v, 1.0)), 0.0)
-
-
-QUANTITY_OF_CANDIDATE = np.array([0] * 6 + [1] * 5 + [2] * 4)
-"""The quantity (0 travel, 1 velocity, 2 acceleration) of each of the 15 candidate
-values per span and joint of :func:`candidate_limits`."""
-
-
 def critical_times(problem: DockingProblem, x):
     """The critical times of :func:`candidate_limits` at x: per span and joint the travel's
     (6), the velocity's (5) and the acceleration's (4) candidate times ``τ ∈ [0, h]`` of
     :func:`dockjax.extrema.chain_extrema`, each with a flag that it is the span's end."""
-    h, _, c = decode(problem, x)
-    ref = materialize(span_angles(c, h))
+    h, _, c, ref = spans(problem, x)
     polys = joint_series(problem, c, h, ref)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     (tt, _), (vt, _), at = extrema.chain_extrema(jax.lax.stop_gradient(polys), jax.lax.stop_gradient(hh))
@@ -115,8 +105,7 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
     at x) holds the times fixed, so that derivatives need not trace the root searches."""
     L = problem.limits if limits is None else limits
     times = critical_times(problem, x) if times is None else times
-    h, _, c = decode(problem, x)
-    ref = materialize(span_angles(c, h))
+    h, _, c, ref = spans(problem, x)
     polys = materialize(joint_series(problem, c, h, ref))  # (6, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     vals = [poly_eval(poly_derivative(polys, k)[..., None, :] if k else polys[..., None, :],
@@ -129,9 +118,8 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
 
 
 def _jerk(problem, x):
-    h, _, c = decode(problem, x)
-    ref = materialize(span_angles(c, h))
-    return jnp.sum(_safe_sqrt(mean_square_jerk(problem, c, h, ref)))
+    h, _, c, ref = spans(problem, x)
+    return jerk(problem, c, h, ref, differentiable=True)
 
 
 _jerk_value = jax.jit(_jerk)
@@ -178,6 +166,63 @@ def time_scale(problem: DockingProblem, x, s: float) -> np.ndarray:
     return x
 
 
+def scaling_needs(G) -> np.ndarray:
+    """Per limit column, the exact time scaling ``s`` that brings it down to its limit:
+    G (..., 24) → (..., 8, 3). Velocities scale by ``1/s`` and accelerations by ``1/s²``,
+    so ``s`` is ``G + 1`` (the maximum over the limit) or its square root; travel does not
+    scale (0)."""
+    G = np.asarray(G, np.float64)
+    r = G.reshape(G.shape[:-1] + (config.N_JOINTS, 3)) + 1.0
+    return np.stack([np.zeros_like(r[..., 0]), r[..., 1], np.sqrt(np.maximum(r[..., 2], 0.0))], -1)
+
+
+def scaling_need(G) -> np.ndarray:
+    """The least time scaling ``s ≥ 1`` after which no rate column of G (..., 24) exceeds
+    its limit (:func:`scaling_needs`). → (...,)."""
+    return np.maximum(1.0, scaling_needs(G).max(axis=(-2, -1)))
+
+
+class PlanError(RuntimeError):
+    """No trajectory meets the limits (the command line's exit code 1). The message names
+    the limit; so do the attributes, where one limit is to blame: ``joint`` (e.g.
+    ``"d_L3"``), ``quantity`` (``"travel"``, ``"velocity"`` or ``"acceleration"``),
+    ``limit`` (its value) and ``unit``, and ``excess``, how far over the limit the best
+    candidate found is (relative: 0.12 is 12 % over), or None where not measured."""
+
+    def __init__(self, message: str, *, joint: str | None = None, quantity: str | None = None,
+                 limit: float | None = None, unit: str | None = None, excess: float | None = None):
+        super().__init__(message)
+        self.joint, self.quantity, self.limit, self.unit, self.excess = joint, quantity, limit, unit, excess
+
+    @classmethod
+    def of_column(cls, problem: DockingProblem, j: int, k: int, message: str, excess: float | None = None):
+        """The error for limit column (joint ``j``, quantity ``k``): ``message`` follows
+        ``"<joint> <quantity> (<limit> <unit>)"``."""
+        limit, unit = float(np.asarray(problem.limits)[j, k]), config.unit(j, k)
+        name = f"{config.JOINT_NAMES[j]} {config.QUANTITIES[k]} ({limit:g} {unit})"
+        return cls(message.replace("{limit}", name), joint=config.JOINT_NAMES[j], quantity=config.QUANTITIES[k],
+                   limit=limit, unit=unit, excess=excess)
+
+
+def infeasibility(problem: DockingProblem) -> PlanError:
+    """Why no trajectory of the decision box meets the limits: the limit that the straight
+    line (the move's natural candidate) misses even slowed as far as the interval bounds
+    allow, as a :class:`PlanError`."""
+    x = straight_line(problem, [config.N_INTERVALS * problem.interval_bounds[1]])[0]
+    F, G = problem.evaluate(x[None])
+    G3 = G[0].reshape(config.N_JOINTS, 3)
+    if G3[:, 0].max() > 0:
+        j = int(np.argmax(G3[:, 0]))
+        return PlanError.of_column(problem, j, 0, "no trajectory meets the limit {limit}: the straight line "
+                                   f"already exceeds it by {100 * G3[j, 0]:.2f} %", excess=float(G3[j, 0]))
+    need = scaling_needs(G[0])
+    j, k = np.unravel_index(np.argmax(need), need.shape)
+    return PlanError.of_column(
+        problem, int(j), int(k), f"no trajectory meets the limit {{limit}}: even the straight line would need "
+        f"T >= {F[0, 0] * need[j, k]:.4g} s, beyond the longest T = {F[0, 0]:g} s the interval bounds "
+        f"{problem.interval_bounds} allow", excess=float(G3[j, k]))
+
+
 def certify_scaling(problem: DockingProblem, x, max_rounds: int = 8):
     """The least exact time scaling ``s ≥ 1`` found by the kernel that makes x feasible.
 
@@ -191,11 +236,9 @@ def certify_scaling(problem: DockingProblem, x, max_rounds: int = 8):
     for _ in range(max_rounds):
         if np.all(G <= 0):
             return x, F, G, s
-        G3 = G.reshape(8, 3)
-        if np.any(G3[:, 0] > 0):
+        if np.any(G.reshape(config.N_JOINTS, 3)[:, 0] > 0):
             return None
-        need = max(1.0, float(np.max(G3[:, 1] + 1.0)), float(np.sqrt(np.max(G3[:, 2] + 1.0))))
-        step = need * (1.0 + 1e-9)
+        step = float(scaling_need(G)) * (1.0 + 1e-9)
         s *= step
         x = time_scale(problem, x, step)
         if np.any(x[: config.N_INTERVALS] > problem.upper[: config.N_INTERVALS]):

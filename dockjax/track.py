@@ -63,7 +63,7 @@ import scipy.linalg
 
 from . import checks, config
 from .pytrees import pytree_dataclass
-from .trajectory import Trajectory
+from .trajectory import Trajectory, sample_bucket
 
 __all__ = ["AxisModel", "TrackResult", "PAPER_MOVES", "PAPER_ERRORS", "PAPER_JOINTS", "check_model",
            "closed_loop_poles", "gains", "plant_step", "simulate", "track"]
@@ -182,10 +182,6 @@ def _resolve(model: AxisModel, n: int | None = None) -> dict[str, np.ndarray]:
     return out
 
 
-def _check_rate(rate: Any) -> float:
-    return checks.number("rate", rate, 0.0, config.MAX_RATE, open_lo=True)
-
-
 def _loop_matrix(p: dict[str, np.ndarray], j: int, h: float) -> np.ndarray:
     """The linear closed loop of joint j (``f_c = 0``, exact encoder, zero reference, so
     ``e = −y``) as the map of the state ``[x_k, v_k, y_{k−1}, −ė_{k−1}, I_{k−1}]`` to the
@@ -213,7 +209,7 @@ def closed_loop_poles(model: AxisModel, rate: float = config.RATE) -> np.ndarray
     """The discrete-time poles of each joint's linear closed loop at ``rate`` Hz (friction
     and quantisation left out; plant discretised exactly with zero-order hold): (n, 5)
     complex, n the model's number of joints (1 if every field is a number)."""
-    rate = _check_rate(rate)
+    rate = checks.rate(rate)
     p = _resolve(model)
     n = p["mass"].shape[0]
     return np.stack([np.linalg.eigvals(_loop_matrix(p, j, 1.0 / rate)) for j in range(n)])
@@ -224,7 +220,7 @@ def check_model(model: AxisModel, rate: float = config.RATE, n_joints: int | Non
     the field for a bad value, naming ``rate`` unless ``0 < rate ≤ config.MAX_RATE``, and
     saying "unstable" if a joint's linear closed loop has a pole with ``|z| ≥ 1``. Returns
     the largest ``|z|`` over the joints."""
-    rate = _check_rate(rate)
+    rate = checks.rate(rate)
     p = _resolve(model, n_joints)
     radii = np.array([np.max(np.abs(np.linalg.eigvals(_loop_matrix(p, j, 1.0 / rate))))
                       for j in range(p["mass"].shape[0])])
@@ -328,11 +324,6 @@ def _loop(p, x0, ref, vel, acc, dt_prev, dt):
 _loop_jit = jax.jit(_loop)
 
 
-def _bucket(m: int) -> int:
-    """Ticks padded to a power of two (at least 1024), so one program serves many lengths."""
-    return max(1024, 1 << max(m - 1, 0).bit_length())
-
-
 def _check_samples(samples: Any, rate: float) -> tuple[np.ndarray, ...]:
     if not isinstance(samples, dict):
         raise ValueError(f"samples must be a dict with t, position, velocity, acceleration, got "
@@ -370,12 +361,12 @@ def simulate(samples: dict, model: AxisModel = AxisModel(), rate: float = config
     ``position`` and ``velocity`` (true plant state), ``measured_position`` (encoder) and
     ``measured_velocity`` (the encoder's differences, filtered by the model's low-pass).
     """
-    rate = _check_rate(rate)
+    rate = checks.rate(rate)
     t, ref, vel, acc = _check_samples(samples, rate)
     m, n = ref.shape
     check_model(model, rate, n)
     p = _resolve(model, n)
-    size = _bucket(m)
+    size = sample_bucket(m)
     h = np.full(size, 0.0)
     h[: m - 1] = 1.0 / rate
     if m > 1:
@@ -427,7 +418,7 @@ def track(trajectory_or_samples: Trajectory | dict, model: AxisModel = AxisModel
     ``trajectory_or_samples``: a :class:`dockjax.Trajectory` (sampled at ``rate`` Hz) or a
     samples dict as :func:`simulate` takes (e.g. ``Plan.samples`` at the same rate).
     """
-    rate = _check_rate(rate)
+    rate = checks.rate(rate)
     if isinstance(trajectory_or_samples, Trajectory):
         samples = trajectory_or_samples.sample(rate)
     else:

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import bspline, config, jets, kinematics
+from . import bspline, checks, config, jets, kinematics
 from .config import DEG as _DEG
 from .decoding import decode
 from .io import atomic_write_text
@@ -24,10 +24,39 @@ from .io import atomic_write_text
 if TYPE_CHECKING:
     from .problem import DockingProblem
 
-__all__ = ["Trajectory"]
+__all__ = ["Trajectory", "sample_times", "sample_bucket", "bucket_durations"]
 
 _SUFFIX = ("", "_vel", "_acc", "_jerk")
-_UNIT_POWER = ("", "/s", "/s^2", "/s^3")
+
+
+def sample_times(T: float, rate: float) -> np.ndarray:
+    """The sample times of a trajectory of duration ``T`` (s) at ``rate`` Hz: ``k / rate``
+    for ``k = 0, 1, …`` below T, and a last one at exactly T."""
+    rate = checks.rate(rate)
+    n = int(np.floor(T * rate + 1e-9))
+    t = np.arange(n + 1) / rate
+    t = t[t < T - 1e-12]
+    return np.append(t, T)
+
+
+def sample_bucket(m: int) -> int:
+    """Times per compiled call for ``m`` times: a power of two, at least 1024, so that one
+    compiled program serves every trajectory length of a bucket (the sampling of a
+    :class:`Trajectory` and the servo simulation of :func:`dockjax.track.simulate` pad
+    to it)."""
+    return max(1024, 1 << max(m - 1, 0).bit_length())
+
+
+def bucket_durations(t_lo: float, t_hi: float, rate: float) -> list[float]:
+    """One duration in ``[t_lo, t_hi]`` per :func:`sample_bucket` that trajectories of
+    those durations fall in at ``rate`` Hz: sampling one trajectory of each compiles every
+    program that sampling any of them needs."""
+    lo, hi = (sample_bucket(len(sample_times(t, rate))) for t in (t_lo, t_hi))
+    out, b = [], lo
+    while b <= hi:
+        out.append(min(max((b // 2 + 1) / rate, t_lo), t_hi))
+        b *= 2
+    return out
 
 
 @jax.jit
@@ -83,11 +112,10 @@ class Trajectory:
         return np.clip(arr, 0.0, self.T)
 
     def _jets(self, t):
-        """Pose and joint jets at t (m,), in calls of a power-of-two number of times (at
-        least 1024; padded with the last time) so that one compiled program serves every
-        trajectory length."""
+        """Pose and joint jets at t (m,), in calls of :func:`sample_bucket` times (padded
+        with the last time) so that one compiled program serves many trajectory lengths."""
         m = len(t)
-        size = max(1024, 1 << max(m - 1, 0).bit_length())
+        size = sample_bucket(m)
         tp = np.concatenate([t, np.full(size - m, t[-1] if m else 0.0)])
         with jax.enable_x64(True):
             pose, joints = _jets_at(self.problem, jnp.asarray(self.x), jnp.asarray(tp))
@@ -109,13 +137,7 @@ class Trajectory:
 
     def sample_times(self, rate: float) -> np.ndarray:
         """Times ``k / rate`` for ``k = 0, 1, …`` up to T, and a last one at exactly T."""
-        rate = float(rate)
-        if not np.isfinite(rate) or rate <= 0:
-            raise ValueError(f"rate must be a positive number of samples per second, got {rate}")
-        n = int(np.floor(self.T * rate + 1e-9))
-        t = np.arange(n + 1) / rate
-        t = t[t < self.T - 1e-12]
-        return np.append(t, self.T)
+        return sample_times(self.T, rate)
 
     def sample(self, rate: float) -> dict[str, np.ndarray]:
         """Samples at :meth:`sample_times`: ``t`` (m,), ``pose`` (m, 6) and, per joint,
@@ -130,7 +152,7 @@ class Trajectory:
     def csv_header(self) -> list[str]:
         cols = ["t [s]"] + [f"{n} [{u}]" for n, u in zip(config.POSE_NAMES, config.POSE_UNITS)]
         for name, unit in zip(config.JOINT_NAMES, config.JOINT_UNITS):
-            cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(_SUFFIX, _UNIT_POWER)]
+            cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(_SUFFIX, config.RATE_SUFFIXES)]
         return cols
 
     def to_csv(self, path: str | os.PathLike, rate: float) -> Path:

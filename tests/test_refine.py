@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from dockjax import DockingProblem
+from dockjax.best_known import best_known_front, reference_point
 from dockjax.metrics import hypervolume
-from dockjax.refine import best_known_front, refine, straight_line
+from dockjax.refine import refine
+from dockjax.solve import straight_line
 from tests.reference import dense_check
 
 HV_REF = (61.0, 20.0)
@@ -24,12 +26,11 @@ def problem():
 
 @pytest.fixture(scope="module")
 def imocs_result(problem):
-    from dockjax.comparison import hv_reference
     from dockjax.optimize import optimize
 
     # the very call of the compare.py test (same shapes: one compilation, shared through
     # the persistent compilation cache of the test run)
-    return optimize("imocs", problem, seeds=[0, 1], pop_size=8, n_iter=3, hv_ref=hv_reference(problem))
+    return optimize("imocs", problem, seeds=[0, 1], pop_size=8, n_iter=3, hv_ref=reference_point(problem))
 
 
 @pytest.fixture(scope="module")

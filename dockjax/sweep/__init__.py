@@ -1,13 +1,15 @@
-"""Hyper-parameter studies that never lose work (``dockjax sweep``, ``experiments/sweep.py``).
+"""Studies that never lose work: hyper-parameter sweeps (``dockjax sweep``,
+``experiments/sweep.py``) and the paper's comparison (``dockjax compare``, :mod:`.paper`).
 
 A study names one or more algorithms and, per algorithm, values for any field of its
 ``Params`` (:mod:`.design`), runs every setting on common seeds — or races them, dropping
 settings as soon as they are significantly worse than the best (:mod:`.race`) — scores
 every run against a reference front fixed before the first run (:mod:`.reference`), and
 reports which settings are as good as the best, and how sure that is (:mod:`.report`,
-:mod:`dockjax.stats`). The package: :mod:`.config` (what a study is: its identity, rounds
-and chunks), :mod:`.execute` (one chunk; local and Dask backends), :mod:`.resume` (the
-folder checks and the resumable loop).
+:mod:`dockjax.stats`). The paper's comparison is one such study, whose report adds the
+paper's tables and figures (:mod:`.paper`). The package: :mod:`.config` (what a study is:
+its identity, rounds and chunks), :mod:`.execute` (one chunk; local and Dask backends),
+:mod:`.resume` (the folder checks and the resumable loop).
 
 Files of a study folder::
 
@@ -15,21 +17,24 @@ Files of a study folder::
       config.json        the study's identity (settings, seeds, chunk size, preset, race,
                          reference definition) + informational versions and command line
       reference.npz      front (r, 2), ideal, nadir, hv_ref, source: the fixed reference and
-                         normalisation of every indicator in the folder
+                         normalisation of every indicator in the folder (and, for the
+                         best-known front, its trajectories X)
       chunks/round-000-chunk-00012.npz   one file per finished chunk: a tidy table (one row
-                         per run), each run's final front and its anytime hypervolume
+                         per run), each run's final front (F and X) and its anytime hypervolume
       runs.csv           every run, sorted by (setting, seed)
       summary.csv / .md  per setting: median and bootstrap interval of HV and IGD+, tests
                          against the best, effect size, verdict
       report.md          the verdict, the table, the race's rounds, the figures
       fronts.npz, anytime_hv.png, eaf.png, heatmap_hv_*.png, hv_vs_pop.png, fronts_best_worst.png
+      (compare adds paper.csv, table3.csv, table4.csv, chosen.json, fronts.png,
+      left_arm_xyz.png, joints.png, convergence.png)
 
 Execution. A round's runs (setting, seed) are grouped by compiled program (algorithm,
 population, iterations, static hyper-parameters) and cut into chunks of at most ``chunk``
 runs; one chunk is one compiled, vmapped :func:`dockjax.optimize.optimize` call with every
 run's own hyper-parameters (a ``Params`` pytree whose leaves carry a run axis); a short
-chunk is padded with repeats of its own runs, which are dropped. The CLI asks JAX for one CPU device per usable core and each
-chunk's runs are sharded over them (bit-identical results; docs/performance.md).
+chunk is padded with repeats of its own runs, which are dropped. The CLI asks JAX for one
+CPU device per usable core and each chunk's runs are sharded over them.
 
 Never losing work. Each finished chunk is written atomically (temporary file in the same
 folder, fsync, ``os.replace``), so a chunk file is either complete or absent, whatever
@@ -59,9 +64,11 @@ from __future__ import annotations
 from .config import COLUMNS, ChunkSpec, ConfigError, SweepConfig, load_front_file, make_config, pilot_spec, plan_round
 from .design import ParamSpec, Setting, build_settings, parse_param
 from .execute import run_chunk
-from .report import load_config, load_table, report, summarise
+from .paper import paper_config, paper_tables
+from .report import Study, load_config, load_study, load_table, report, summarise
 from .resume import prepare_folder, remove_created, run_sweep
 
 __all__ = ["COLUMNS", "ChunkSpec", "ConfigError", "SweepConfig", "load_front_file", "make_config", "pilot_spec",
-           "plan_round", "ParamSpec", "Setting", "build_settings", "parse_param", "run_chunk", "load_config",
-           "load_table", "report", "summarise", "prepare_folder", "remove_created", "run_sweep"]
+           "plan_round", "ParamSpec", "Setting", "build_settings", "parse_param", "run_chunk", "paper_config",
+           "paper_tables", "Study", "load_config", "load_study", "load_table", "report", "summarise",
+           "prepare_folder", "remove_created", "run_sweep"]

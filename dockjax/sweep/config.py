@@ -12,6 +12,7 @@ configuration and of results that are themselves reproduced bit for bit.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from dataclasses import dataclass
@@ -21,16 +22,16 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from .. import config
-from ..algorithms import make_params
-from ..algorithms.base import stack_params
+from ..algorithms import get, make_params
 from ..metrics import nondominated_points
+from ..problem import bucket_rows
 from .design import ParamSpec, Setting, build_settings, static_key
 from .files import load_npz
 
 __all__ = ["FORMAT", "PILOT_SEED0", "COLUMNS", "INDICATOR_COLUMNS", "ConfigError", "SweepConfig", "ChunkSpec",
            "round_seeds", "plan_round", "pilot_spec", "load_front_file", "make_config"]
 
-FORMAT = "dockjax-sweep/2"
+FORMAT = "dockjax-sweep/3"
 PILOT_SEED0 = 1_000_000
 """First seed of the reference pilot (disjoint from a study's seeds)."""
 INDICATOR_COLUMNS = ("HV", "IGD", "IGD+", "GD", "SP", "ONVG")
@@ -53,19 +54,28 @@ class SweepConfig:
     """Seeds per setting (the seed budget of a race)."""
     chunk: int
     reference: dict
-    refine_steps: int = 0
     race: dict | None = None
     """None, or ``{"min_seeds": m, "alpha": a}``."""
     devices: int | None = None
     """CPU devices a chunk's runs are sharded over. Sharding changes the order of some
     floating-point reductions, and an optimiser's choices can then diverge after many
     iterations, so the count is part of the identity (None: not recorded, e.g. Dask)."""
+    driver: str = "scan"
+    """:func:`dockjax.optimize.optimize`'s driver: ``"scan"`` (fastest per iteration) or
+    ``"host"`` (every algorithm shares the kernel's compilation: ``dockjax compare``)."""
 
     def identity(self) -> dict:
         return {"format": FORMAT, "preset": self.preset, "settings": [s.identity() for s in self.settings],
                 "seeds": self.seeds, "chunk": self.chunk, "reference": self.reference, "devices": self.devices,
-                "refine_steps": self.refine_steps, "race": self.race, "hv_ref": config.HV_REFERENCE,
+                "driver": self.driver, "race": self.race, "hv_ref": config.HV_REFERENCE,
                 "normalisation": "ideal and nadir of reference.npz's front"}
+
+    @classmethod
+    def from_identity(cls, d: dict) -> "SweepConfig":
+        """The configuration of a stored identity (``config.json``'s ``identity``)."""
+        return cls(settings=tuple(Setting.from_identity(s) for s in d["settings"]), preset=d["preset"],
+                   seeds=int(d["seeds"]), chunk=int(d["chunk"]), reference=d["reference"], race=d["race"],
+                   devices=d["devices"], driver=d["driver"])
 
     @property
     def algorithms(self) -> list[str]:
@@ -93,11 +103,20 @@ class ChunkSpec:
     hyper: tuple[tuple[tuple[str, Any], ...], ...]
     n_real: int
     refine_steps: int = 0
+    refine_rows: int | None = None
+    """Rows per compiled call of the memetic finish (shared with the reference's)."""
+    driver: str = "scan"
 
     def params(self) -> Any:
-        """The algorithm's ``Params`` of the chunk, every traced leaf with a run axis
-        (:func:`dockjax.algorithms.base.stack_params`)."""
-        return stack_params([make_params(self.algorithm, self.pop, self.iters, **dict(h)) for h in self.hyper])
+        """The algorithm's ``Params`` of the chunk: every hyper-parameter the settings name
+        with a run axis (one value per run, so that every chunk of a study is one compiled
+        program whatever its values), the others the algorithm's defaults."""
+        Params = get(self.algorithm).Params
+        statics = {k: v for k, v in self.hyper[0] if Params.__dataclass_fields__[k].metadata.get("static")}
+        base = make_params(self.algorithm, self.pop, self.iters, **statics)
+        names = sorted({k for h in self.hyper for k, _ in h} - set(statics))
+        return dataclasses.replace(base, **{k: np.array([dict(h).get(k, getattr(base, k)) for h in self.hyper],
+                                                         np.float64) for k in names})
 
     @property
     def label(self) -> str:
@@ -135,8 +154,9 @@ def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds:
             for seed in seeds:
                 groups.setdefault(static_key(s), []).append((i, seed))
     chunks: list[ChunkSpec] = []
+    rows = refine_rows(cfg)
     for key, runs in groups.items():
-        algorithm, pop, iters, _ = key
+        algorithm, pop, iters, _, refine_steps = key
         size = cfg.chunk if cfg.race is not None else _chunk_size(len(runs), cfg.chunk)
         for k in range(0, len(runs), size):
             real = runs[k:k + size]
@@ -145,20 +165,35 @@ def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds:
                                     pop=pop, iters=iters, settings=tuple(i for i, _ in padded),
                                     seeds=tuple(s for _, s in padded),
                                     hyper=tuple(cfg.settings[i].params for i, _ in padded), n_real=len(real),
-                                    refine_steps=cfg.refine_steps))
+                                    refine_steps=refine_steps, refine_rows=rows if refine_steps else None,
+                                    driver=cfg.driver))
     return chunks
 
 
 def pilot_spec(cfg: SweepConfig) -> ChunkSpec:
     """The reference pilot: one chunk of the first algorithm at its default hyper-parameters,
     its largest population and its largest iteration count, seeds from :data:`PILOT_SEED0`."""
-    first = cfg.settings[0].algorithm
-    mine = [s for s in cfg.settings if s.algorithm == first]
+    first = cfg.settings[0]
+    mine = [s for s in cfg.settings if s.algorithm == first.algorithm]
     pop, iters = max(s.pop for s in mine), max(s.iters for s in mine)
     size = min(cfg.chunk, max(2, len(mine) * cfg.seeds))
-    return ChunkSpec(round=-1, index=0, preset=cfg.preset, algorithm=first, pop=pop, iters=iters,
+    return ChunkSpec(round=-1, index=0, preset=cfg.preset, algorithm=first.algorithm, pop=pop, iters=iters,
                      settings=(-1,) * size, seeds=tuple(PILOT_SEED0 + i for i in range(size)),
-                     hyper=((),) * size, n_real=size, refine_steps=cfg.refine_steps)
+                     hyper=((),) * size, n_real=size, refine_steps=first.refine_steps,
+                     refine_rows=refine_rows(cfg) if first.refine_steps else None, driver=cfg.driver)
+
+
+REFINE_ROWS = 256
+"""Most rows per compiled call of a study's gradient refinement (see :func:`refine_rows`)."""
+
+
+def refine_rows(cfg: SweepConfig) -> int:
+    """Rows per compiled call shared by every refinement of a study — the best-known
+    front's and the memetic settings' — so that one compiled program serves them all: the
+    kernel's bucket of the largest batch, at most :data:`REFINE_ROWS`."""
+    sizes = [int(cfg.reference["n_points"])] if cfg.reference.get("kind") == "best-known" else []
+    sizes += [min(cfg.chunk, cfg.seeds) * s.pop for s in cfg.settings if s.refine_steps]
+    return min(REFINE_ROWS, bucket_rows(max(sizes or [1])))
 
 
 def _sha256(a: np.ndarray) -> str:
@@ -200,13 +235,19 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
                 samples: int = 0, design_seed: int = 0, seeds: int = config.SWEEP_SEEDS, preset: str = "paper",
                 refine_steps: int = 0, chunk: int = config.SWEEP_CHUNK, reference: str = "best-known",
                 reference_front=None, race: bool = False, race_min_seeds: int = 5, race_alpha: float = 0.05,
-                devices: int | None = None) -> tuple[SweepConfig, np.ndarray | None]:
+                devices: int | None = None, best_known: dict | None = None,
+                driver: str = "scan") -> tuple[SweepConfig, np.ndarray | None]:
     """Validate a sweep (nothing is written, nothing is compiled) and build its
-    configuration. ``reference``: ``"best-known"`` (default), ``"pilot"`` or ``"file"``
+    configuration. ``reference``: ``"best-known"`` (default; ``best_known`` overrides
+    settings of :data:`dockjax.config.BEST_KNOWN`), ``"pilot"`` or ``"file"``
     (``reference_front`` a path). Returns the configuration and the loaded reference front
     (None unless read from a file). Raises ConfigError with every problem on one line,
     naming the options."""
     errors: list[str] = []
+    if preset not in config.PRESETS:
+        errors.append(f"--preset must be one of {', '.join(config.PRESETS)}, got {preset!r}")
+    if driver not in ("scan", "host"):
+        errors.append(f"driver must be 'scan' or 'host', got {driver!r}")
     if not pop:
         errors.append("--pop grid is empty (give at least one population size)")
     bad_pop = [p for p in pop if p < 4]
@@ -245,20 +286,20 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
         ref = {"kind": "pilot", "seeds_from": PILOT_SEED0, "hyper": "defaults", "pop": "largest",
                "iters": "largest", "runs": "one chunk"}
     elif reference == "best-known":
-        ref = {"kind": "best-known", **config.BEST_KNOWN}
+        ref = {"kind": "best-known", **config.BEST_KNOWN, **(best_known or {})}
     else:
         errors.append(f"--reference must be best-known, pilot or file, got {reference!r}")
         ref = {}
     settings: list[Setting] = []
     if not errors:
         try:
-            settings = build_settings(algorithms, params, pop, iters, budget, design, samples, design_seed)
+            settings = build_settings(algorithms, params, pop, iters, budget, design, samples, design_seed,
+                                      refine_steps)
         except ValueError as exc:
             errors.append(str(exc))
     if errors:
         raise ConfigError("; ".join(errors))
     cfg = SweepConfig(settings=tuple(settings), preset=preset, seeds=seeds, chunk=chunk, reference=ref,
-                      refine_steps=refine_steps,
                       race={"min_seeds": race_min_seeds, "alpha": race_alpha} if race else None,
-                      devices=devices)
+                      devices=devices, driver=driver)
     return cfg, front

@@ -37,31 +37,40 @@ FIXED_FIELDS = ("pop_size", "max_iter")
 class Setting:
     """One configuration of an optimiser. ``params``: sorted ``(field, value)`` pairs of the
     hyper-parameters named by the study, each value in its field's type (an int for an
-    integer field, else a float: :func:`dockjax.algorithms.base.coerce`)."""
+    integer field, else a float: :func:`dockjax.algorithms.base.coerce`). ``refine_steps``
+    > 0 makes it memetic: every run's final population is polished by that many steps of
+    gradient refinement (:func:`dockjax.optimize.refine_result`)."""
 
     algorithm: str
     pop: int
     iters: int
     params: tuple[tuple[str, float], ...] = ()
+    refine_steps: int = 0
 
     def value(self, name: str, default=math.nan):
         return dict(self.params).get(name, default)
 
     @property
+    def name(self) -> str:
+        """The algorithm column: e.g. ``imocs``, or ``imocs+refine`` for a memetic setting."""
+        return f"{self.algorithm}+refine" if self.refine_steps else self.algorithm
+
+    @property
     def label(self) -> str:
-        bits = [self.algorithm, f"pop {self.pop}", f"{self.iters} it"]
+        bits = [self.name, f"pop {self.pop}", f"{self.iters} it"]
         bits += [f"{symbol(self.algorithm, k)}={v:g}" for k, v in self.params]
         return ", ".join(bits)
 
     def identity(self) -> dict:
         return {"algorithm": self.algorithm, "pop": self.pop, "iters": self.iters,
-                "params": {k: v for k, v in self.params}}
+                "params": {k: v for k, v in self.params}, "refine_steps": self.refine_steps}
 
     @classmethod
     def from_identity(cls, d: dict) -> "Setting":
         Params = algorithms.get(str(d["algorithm"])).Params
         return cls(str(d["algorithm"]), int(d["pop"]), int(d["iters"]),
-                   tuple(sorted((str(k), coerce(Params, str(k), v)) for k, v in d["params"].items())))
+                   tuple(sorted((str(k), coerce(Params, str(k), v)) for k, v in d["params"].items())),
+                   int(d.get("refine_steps", 0)))
 
     def make_params(self):
         """The algorithm's ``Params`` of this setting (validated)."""
@@ -147,10 +156,11 @@ def _samples(ranges: list[ParamSpec], n: int, design: str, seed: int) -> np.ndar
 
 def build_settings(algorithm_names: Sequence[str], specs: Iterable[ParamSpec], pops: Sequence[int],
                    iters: Sequence[int] = (), budget: int | None = None, design: str = "grid", samples: int = 0,
-                   seed: int = 0) -> list[Setting]:
+                   seed: int = 0, refine_steps: int = 0) -> list[Setting]:
     """Every setting of the study, in a deterministic order (by algorithm as given, then
-    population, iterations and parameter values). Raises ValueError, naming the field and
-    its allowed range, for an unknown field or an out-of-range value."""
+    population, iterations and parameter values); ``refine_steps`` makes every one memetic.
+    Raises ValueError, naming the field and its allowed range, for an unknown field or an
+    out-of-range value."""
     specs = list(specs)
     names = [algorithms.get(a).name for a in algorithm_names]
     if not names:
@@ -200,15 +210,16 @@ def build_settings(algorithm_names: Sequence[str], specs: Iterable[ParamSpec], p
                     raise ValueError(f"{name}: {exc}") from None
         for pop, it in shapes:
             for params in sorted(combos):
-                setting = Setting(name, int(pop), int(it), params)
+                setting = Setting(name, int(pop), int(it), params, int(refine_steps))
                 setting.make_params()  # every value in its field's range
                 out.append(setting)
     return out
 
 
 def static_key(setting: Setting) -> tuple:
-    """What fixes a compiled program: the algorithm, population, iterations and the static
-    hyper-parameters (e.g. MOPSO's grid divisions). Settings with the same key share chunks."""
+    """What fixes a compiled program: the algorithm, population, iterations, the static
+    hyper-parameters (e.g. MOPSO's grid divisions) and the memetic finish. Settings with
+    the same key share chunks."""
     fields = algorithms.get(setting.algorithm).Params.__dataclass_fields__
     statics = tuple((k, v) for k, v in setting.params if fields[k].metadata.get("static"))
-    return (setting.algorithm, setting.pop, setting.iters, statics)
+    return (setting.algorithm, setting.pop, setting.iters, statics, setting.refine_steps)

@@ -12,16 +12,18 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from .. import metrics
-from ..optimize import optimize
+from ..metrics import nondominated_points
+from ..optimize import optimize, refine_result
 from ..problem import make_problem
 from ..runtime import enable_compilation_cache
 from .config import INDICATOR_COLUMNS, ChunkSpec
 
-__all__ = ["run_chunk", "LocalBackend", "DaskBackend"]
+__all__ = ["run_chunk", "problem_of", "LocalBackend", "DaskBackend"]
 
 
 @lru_cache(maxsize=None)
-def _problem(preset: str):
+def problem_of(preset: str):
+    """The problem of a preset (:func:`dockjax.problem.make_problem`), made once per process."""
     return make_problem(preset)
 
 
@@ -31,12 +33,12 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
 
     ``reference``: {"front", "ideal", "nadir", "hv_ref"} or None (no indicators; the pilot).
     ``devices``: local devices the runs are sharded over (default all; see
-    :func:`dockjax.optimize.optimize`; the results do not depend on it).
+    :func:`dockjax.optimize.optimize`: the numbers may depend on the count).
     Returns the chunk's table columns (one entry per real run), ``history`` (runs,
     iterations) the normalised hypervolume of each run's feasible set after every
-    iteration, ``front_F`` (every run's distinct feasible non-dominated F, concatenated) and
-    ``front_offsets``. A pure function of its arguments (apart from ``wall_s``); runs on a
-    Dask worker as well.
+    iteration, ``front_F`` and ``front_X`` (every run's distinct feasible non-dominated
+    points, sorted by T, concatenated) and ``front_offsets``. A pure function of its
+    arguments (apart from ``wall_s``); runs on a Dask worker as well.
     """
     t0 = time.perf_counter()
     hv_ref = scale = None
@@ -44,10 +46,17 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
         ideal, nadir = np.asarray(reference["ideal"]), np.asarray(reference["nadir"])
         span = np.where(nadir > ideal, nadir - ideal, 1.0)
         hv_ref, scale = ideal + float(reference["hv_ref"]) * span, float(np.prod(span))
-    r = optimize(spec.algorithm, _problem(spec.preset), params=spec.params(), seeds=np.asarray(spec.seeds, np.int64),
-                 n_iter=spec.iters, hv_ref=hv_ref, refine_steps=spec.refine_steps, devices=devices)
+    problem = problem_of(spec.preset)
+    r = optimize(spec.algorithm, problem, params=spec.params(), seeds=np.asarray(spec.seeds, np.int64),
+                 n_iter=spec.iters, hv_ref=hv_ref, driver=spec.driver, devices=devices)
+    if spec.refine_steps:
+        r = refine_result(problem, r, steps=spec.refine_steps, rows=spec.refine_rows)
     n = spec.n_real
-    fronts = r.fronts()[:n]
+    fronts, front_X = [], []
+    for i in range(n):  # each run's distinct feasible non-dominated points, sorted by T
+        F, idx = nondominated_points(r.F[i][r.front[i]], return_index=True)
+        fronts.append(F)
+        front_X.append(r.X[i][r.front[i]][idx])
     out: dict[str, np.ndarray] = {
         "setting": np.asarray(spec.settings[:n], np.int64),
         "algorithm": np.asarray([spec.label] * n),
@@ -66,6 +75,7 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
             out[k] = np.asarray(ind[k])[:n].astype(np.int64 if k == "ONVG" else np.float64)
         out["history"] = np.asarray(r.history[:n], np.float64) / scale
     out["front_F"] = np.concatenate([f for f in fronts] + [np.zeros((0, 2))]).astype(np.float64)
+    out["front_X"] = np.concatenate(front_X + [np.zeros((0, r.X.shape[-1]))]).astype(np.float64)
     out["front_offsets"] = np.cumsum([0] + [len(f) for f in fronts]).astype(np.int64)
     out["wall_s"] = np.full(n, (time.perf_counter() - t0) / len(spec.seeds))
     return out

@@ -3,11 +3,11 @@
 with gradient refinement that sees no optimiser's front, computed once per problem
 definition and cached on disk by its identity), a pilot of the study's first algorithm, or a
 user's file. ``reference.npz`` records the front, its ideal and nadir (the normalisation of
-every indicator), the hypervolume reference point and the kind."""
+every indicator), the hypervolume reference point, the kind and, for the best-known front,
+its trajectories ``X``."""
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 from typing import Callable
@@ -15,20 +15,14 @@ from typing import Callable
 import numpy as np
 
 from .. import config
+from ..best_known import best_known_cached, fronts_cache
 from ..io import atomic_savez
 from ..metrics import nondominated_points
-from ..problem import make_problem
-from ..refine import best_known_cached
-from .config import PILOT_SEED0, ConfigError, SweepConfig, pilot_spec
-from .execute import run_chunk
+from .config import PILOT_SEED0, ConfigError, SweepConfig, pilot_spec, refine_rows
+from .execute import problem_of, run_chunk
 from .files import DamagedFileError, load_npz
 
-__all__ = ["fronts_cache", "fixed_reference"]
-
-
-def fronts_cache() -> Path:
-    """Where best-known fronts are cached: ``$DOCKJAX_FRONTS`` or ``~/.cache/dockjax/fronts``."""
-    return Path(os.environ.get("DOCKJAX_FRONTS", Path.home() / ".cache" / "dockjax" / "fronts"))
+__all__ = ["fixed_reference"]
 
 
 def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backend,
@@ -46,6 +40,7 @@ def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backe
             log(f"reference: {path} is damaged; made again ({cfg.reference['kind']}, deterministic)")
     t0 = time.perf_counter()
     kind = cfg.reference["kind"]
+    extra = {}
     if kind == "best-known":
         cache = fronts_cache()
         try:
@@ -53,7 +48,11 @@ def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backe
         except OSError:
             cache = None
         settings = {k: cfg.reference[k] for k in config.BEST_KNOWN}
-        front = nondominated_points(best_known_cached(make_problem(cfg.preset), cache, log=log, **settings).F)
+        # with memetic settings, the front's polishing shares their compiled shape
+        rows = refine_rows(cfg) if any(s.refine_steps for s in cfg.settings) else None
+        best = best_known_cached(problem_of(cfg.preset), cache, log=log, rows=rows, **settings)
+        front, idx = nondominated_points(best.F, return_index=True)
+        extra["X"] = best.X[idx]
     elif kind == "pilot":
         spec = pilot_spec(cfg)
         log(f"reference: pilot of {spec.n_real} {spec.algorithm} runs (pop {spec.pop}, {spec.iters} iterations, "
@@ -64,7 +63,7 @@ def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backe
         raise RuntimeError(f"the reference ({kind}) holds no feasible trajectory; raise --iters or pass "
                            "--reference-front")
     ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": np.float64(config.HV_REFERENCE),
-           "source": np.asarray(kind)}
+           "source": np.asarray(kind), **extra}
     atomic_savez(path, ref)
     log(f"reference: {len(front)} points ({kind}) in {time.perf_counter() - t0:.1f} s; ideal "
         f"{np.round(ref['ideal'], 4).tolist()}, nadir {np.round(ref['nadir'], 4).tolist()}")

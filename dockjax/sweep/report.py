@@ -13,6 +13,10 @@ population size, and the fronts of the best and the worst setting.
 
 The verdict never crowns a winner the data cannot distinguish: the best setting by median
 HV is named together with every setting not significantly worse than it.
+
+A report may be extended (``report(..., extensions=[...])``): an extension receives the
+:class:`Study` the report was made from and returns lines for ``report.md`` and the files
+it wrote (``dockjax compare`` adds the paper's tables this way, :mod:`.paper`).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import moocore
 import numpy as np
@@ -30,11 +34,12 @@ from scipy.stats import rankdata
 from .. import plots, stats
 from ..io import atomic_savez, atomic_write_text
 from .config import COLUMNS, INDICATOR_COLUMNS, SweepConfig, round_seeds
-from .design import Setting, symbol
+from .design import symbol
 from .files import load_npz
 from .race import eliminate
 
-__all__ = ["load_table", "load_config", "summarise", "report"]
+__all__ = ["Study", "Summary", "load_table", "load_config", "load_study", "summarise", "report", "write_table",
+           "markdown_table"]
 
 TOP_VIEWS = 4
 """Settings drawn in the anytime view (the leading ones by median HV, and the default)."""
@@ -52,25 +57,28 @@ def _fmt(v) -> str:
 
 def load_config(out: Path) -> SweepConfig:
     """The configuration stored in ``out/config.json``."""
-    d = json.loads((Path(out) / "config.json").read_text())["identity"]
-    return SweepConfig(settings=tuple(Setting.from_identity(s) for s in d["settings"]), preset=d["preset"],
-                       seeds=int(d["seeds"]), chunk=int(d["chunk"]), reference=d["reference"],
-                       refine_steps=int(d["refine_steps"]), race=d["race"])
+    return SweepConfig.from_identity(json.loads((Path(out) / "config.json").read_text())["identity"])
 
 
-def load_table(out: Path) -> tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray]]:
+def load_table(out: Path) -> tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
     """Every chunk file of ``out`` merged, runs sorted by (setting, seed): the columns, each
-    run's front (k, 2) and each run's anytime hypervolume (iterations,)."""
+    run's front F (k, 2) and its trajectories X (k, n_var), and each run's anytime
+    hypervolume (iterations,)."""
     parts = [load_npz(p) for p in sorted((Path(out) / "chunks").glob("round-*-chunk-*.npz"))]
     if not parts:
         raise RuntimeError(f"no chunk files in {out / 'chunks'}")
     keys = ("setting", "algorithm", "seed", "round", "chunk", *INDICATOR_COLUMNS, "T_min", "T_max", "jerk_min",
             "jerk_max", "wall_s")
     cols = {k: np.concatenate([p[k] for p in parts]) for k in keys}
-    fronts = [p["front_F"][a:b] for p in parts for a, b in zip(p["front_offsets"][:-1], p["front_offsets"][1:])]
+
+    def split(name):
+        return [p[name][a:b] for p in parts for a, b in zip(p["front_offsets"][:-1], p["front_offsets"][1:])]
+
+    fronts, fronts_X = split("front_F"), split("front_X")
     history = [h for p in parts for h in p["history"]]
     order = np.lexsort((cols["seed"], cols["setting"]))
-    return {k: v[order] for k, v in cols.items()}, [fronts[i] for i in order], [history[i] for i in order]
+    return ({k: v[order] for k, v in cols.items()}, [fronts[i] for i in order], [fronts_X[i] for i in order],
+            [history[i] for i in order])
 
 
 def _matrix(cfg: SweepConfig, cols, column: str) -> np.ndarray:
@@ -108,6 +116,35 @@ class Summary:
     rounds: list[np.ndarray]
 
 
+@dataclass
+class Study:
+    """A finished sweep folder, loaded: what its report (and an extension) is made from.
+    Runs are sorted by (setting, seed): ``cols`` the table's columns, ``fronts`` /
+    ``fronts_X`` each run's front (k, 2) and its trajectories (k, n_var), ``history`` each
+    run's anytime hypervolume; ``ref`` the folder's reference (``reference.npz``)."""
+
+    out: Path
+    cfg: SweepConfig
+    cols: dict[str, np.ndarray]
+    fronts: list[np.ndarray]
+    fronts_X: list[np.ndarray]
+    history: list[np.ndarray]
+    ref: dict[str, np.ndarray]
+    summary: Summary
+
+    def runs_of(self, setting: int) -> np.ndarray:
+        """Indices of the runs of one setting, by seed."""
+        return np.flatnonzero(self.cols["setting"] == setting)
+
+
+def load_study(out: Path) -> Study:
+    """The folder's configuration, runs, reference and statistics (:func:`summarise`)."""
+    out = Path(out)
+    cfg = load_config(out)
+    cols, fronts, fronts_X, history = load_table(out)
+    return Study(out, cfg, cols, fronts, fronts_X, history, load_npz(out / "reference.npz"), summarise(cfg, cols))
+
+
 def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
     """The statistics of every setting (see the module docstring)."""
     hv, igdp = _matrix(cfg, cols, "HV"), _matrix(cfg, cols, "IGD+")
@@ -128,7 +165,7 @@ def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
         v = hv[i][np.isfinite(hv[i])]
         med, lo, hi = stats.median_ci(v, seed=i)
         gmed, glo, ghi = stats.median_ci(igdp[i][np.isfinite(igdp[i])], seed=i)
-        row = {"setting": i, "label": s.label, "algorithm": s.algorithm, "pop": s.pop, "iterations": s.iters,
+        row = {"setting": i, "label": s.label, "algorithm": s.name, "pop": s.pop, "iterations": s.iters,
                "params": " ".join(f"{k}={v:g}" for k, v in s.params), "runs": int(v.size), "HV_median": med,
                "HV_ci_low": lo, "HV_ci_high": hi, "IGD+_median": gmed, "IGD+_ci_low": glo, "IGD+_ci_high": ghi}
         sel = cols["setting"] == i
@@ -166,9 +203,11 @@ def _verdict(cfg: SweepConfig, summary: Summary) -> list[str]:
     lines = [f"Best by median HV: **{best.label}** (median {summary.rows[idx[c.best]]['HV_median']:.4f} over "
              f"{n_seeds} seeds). Friedman test across the {len(idx)} compared settings: p = {fp}."]
     if len(tied) == len(idx) - 1 and tied:
+        advice = ("A race with a larger seed budget (--seeds) may separate them." if cfg.race else
+                  "Run more seeds, or race them (--race).")
         lines.append(f"No setting is significantly worse than it at {n_seeds} seeds (Wilcoxon signed-rank against "
                      f"the best, Holm's correction, α = {c.alpha:g}): all {len(idx)} are tied, and this study "
-                     "cannot name a winner. Run more seeds, or race them (--race).")
+                     f"cannot name a winner. {advice}")
     elif tied:
         lines.append(f"{len(tied)} other setting(s) are not significantly worse (Wilcoxon signed-rank against the "
                      f"best, Holm's correction, α = {c.alpha:g}) and tie with it: "
@@ -184,21 +223,36 @@ SUMMARY_COLUMNS = ("setting", "algorithm", "pop", "iterations", "params", "runs"
                    "ONVG_median", "mean_rank", "p_vs_best", "p_holm", "A12_best_over", "tied_with_best", "status")
 
 
+def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table: one line per row, cells already formatted."""
+    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
+
+
+def write_table(rows: list[dict], columns: Sequence[str], path: Path) -> Path:
+    """``rows`` as a CSV file (one line per row, the values of ``columns``; numbers written
+    exactly: ``repr`` of floats), atomically."""
+    lines = [",".join(columns)] + [",".join(_fmt(r[c]) for c in columns) for r in rows]
+    return atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def _num(v, spec: str) -> str:
+    return "–" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
+
+
 def _md_table(rows: list[dict], limit: int | None = None) -> list[str]:
     head = ["setting", "runs", "HV median [95 % CI]", "IGD+ median [95 % CI]", "mean rank", "p (Holm)",
             "A₁₂ of best", "verdict"]
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for r in rows[:limit]:
-        num = lambda v, f: "–" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, f)  # noqa: E731
-        out.append("| " + " | ".join([
-            r["label"], str(r["runs"]),
-            f"{num(r['HV_median'], '.4f')} [{num(r['HV_ci_low'], '.4f')}, {num(r['HV_ci_high'], '.4f')}]",
-            f"{num(r['IGD+_median'], '.4f')} [{num(r['IGD+_ci_low'], '.4f')}, {num(r['IGD+_ci_high'], '.4f')}]",
-            num(r["mean_rank"], ".2f"), num(r["p_holm"], ".3g"), num(r["A12_best_over"], ".2f"), r["status"]]) + " |")
-    return out
+    return markdown_table(head, [[
+        r["label"], str(r["runs"]),
+        f"{_num(r['HV_median'], '.4f')} [{_num(r['HV_ci_low'], '.4f')}, {_num(r['HV_ci_high'], '.4f')}]",
+        f"{_num(r['IGD+_median'], '.4f')} [{_num(r['IGD+_ci_low'], '.4f')}, {_num(r['IGD+_ci_high'], '.4f')}]",
+        _num(r["mean_rank"], ".2f"), _num(r["p_holm"], ".3g"), _num(r["A12_best_over"], ".2f"), r["status"]]
+        for r in rows[:limit]])
 
 
-def _figures(out: Path, cfg: SweepConfig, cols, fronts, history, summary: Summary, ref) -> list[Path]:
+def _figures(study: Study) -> list[Path]:
+    out, cfg, cols, fronts, history, summary, ref = (study.out, study.cfg, study.cols, study.fronts, study.history,
+                                                     study.summary, study.ref)
     written: list[Path] = []
     rows = _order(summary.rows)
     ranked = [r["setting"] for r in rows if r["runs"]]
@@ -274,36 +328,38 @@ def _figures(out: Path, cfg: SweepConfig, cols, fronts, history, summary: Summar
     return written
 
 
-def report(out: Path, *, top: int = 10, log: Callable[[str], None] = print) -> list[Path]:
-    """Tables, statistics, ``report.md`` and the figures of a finished sweep folder (every
-    file atomically); prints the verdict and the leading rows."""
-    out = Path(out)
-    cfg = load_config(out)
-    cols, fronts, history = load_table(out)
-    ref = load_npz(out / "reference.npz")
-    written = []
-    params = [" ".join(f"{k}={v:g}" for k, v in cfg.settings[i].params) for i in cols["setting"]]
-    table = {**cols, "pop": np.array([cfg.settings[i].pop for i in cols["setting"]]),
-             "iterations": np.array([cfg.settings[i].iters for i in cols["setting"]]), "params": np.array(params)}
-    lines = [",".join(COLUMNS)] + [",".join(_fmt(table[c][i]) for c in COLUMNS) for i in range(len(cols["setting"]))]
-    atomic_write_text(out / "runs.csv", "\n".join(lines) + "\n")
-    offsets = np.cumsum([0] + [len(f) for f in fronts])
-    atomic_savez(out / "fronts.npz", {"F": np.concatenate(fronts + [np.zeros((0, 2))]), "offsets": offsets,
-                                       "setting": cols["setting"], "seed": cols["seed"]})
-    written += [out / "runs.csv", out / "fronts.npz"]
+Extension = Callable[[Study, Callable[[str], None]], tuple[list[str], list[Path]]]
+"""A report extension: ``(study, log) -> (lines of report.md, files written)``."""
 
-    summary = summarise(cfg, cols)
+
+def report(out: Path, *, top: int = 10, extensions: Sequence[Extension] = (),
+           log: Callable[[str], None] = print) -> list[Path]:
+    """Tables, statistics, ``report.md`` and the figures of a finished sweep folder (every
+    file atomically), with the sections and files of ``extensions``; prints the verdict and
+    the leading rows. Returns the files written."""
+    study = load_study(out)
+    out, cfg, cols, fronts, ref, summary = study.out, study.cfg, study.cols, study.fronts, study.ref, study.summary
+    written = []
+    table = {**cols, "pop": np.array([cfg.settings[i].pop for i in cols["setting"]]),
+             "iterations": np.array([cfg.settings[i].iters for i in cols["setting"]]),
+             "params": np.array([" ".join(f"{k}={v:g}" for k, v in cfg.settings[i].params) for i in cols["setting"]])}
+    written.append(write_table([{c: table[c][i] for c in COLUMNS} for i in range(len(cols["setting"]))], COLUMNS,
+                               out / "runs.csv"))
+    offsets = np.cumsum([0] + [len(f) for f in fronts])
+    atomic_savez(out / "fronts.npz", {"F": np.concatenate(fronts + [np.zeros((0, 2))]),
+                                       "X": np.concatenate(study.fronts_X), "offsets": offsets,
+                                       "setting": cols["setting"], "seed": cols["seed"]})
+    written.append(out / "fronts.npz")
+
     rows = _order(summary.rows)
-    csv = [",".join(SUMMARY_COLUMNS)] + [",".join(_fmt(r[c]) for c in SUMMARY_COLUMNS) for r in rows]
-    atomic_write_text(out / "summary.csv", "\n".join(csv) + "\n")
+    written.append(write_table(rows, SUMMARY_COLUMNS, out / "summary.csv"))
     verdict = _verdict(cfg, summary)
     source = str(ref.get("source", "pilot"))
     note = (f"Indicators on objectives normalised by the fixed reference front of reference.npz ({source}, "
             f"{len(ref['front'])} points; HV reference point {float(ref['hv_ref'])}). Intervals: percentile "
             "bootstrap of the median, 95 %.")
-    atomic_write_text(out / "summary.md", "\n".join(_md_table(rows)) + "\n\n" + note + "\n")
-    written += [out / "summary.csv", out / "summary.md"]
-    figures = _figures(out, cfg, cols, fronts, history, summary, ref)
+    written.append(atomic_write_text(out / "summary.md", "\n".join(_md_table(rows)) + "\n\n" + note + "\n"))
+    figures = _figures(study)
     written += figures
 
     md = ["# Sweep report", "",
@@ -324,8 +380,11 @@ def report(out: Path, *, top: int = 10, log: Callable[[str], None] = print) -> l
             alive_before = int(alive.sum())
         md.append("")
     md += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figures] + [""]
-    atomic_write_text(out / "report.md", "\n".join(md))
-    written.append(out / "report.md")
+    for extend in extensions:
+        lines, files = extend(study, log)
+        md += lines + [""]
+        written += files
+    written.append(atomic_write_text(out / "report.md", "\n".join(md)))
 
     log("")
     for line in verdict:
@@ -338,5 +397,5 @@ def report(out: Path, *, top: int = 10, log: Callable[[str], None] = print) -> l
         log(f"{'':>2}  {r['label'][:46]:<46} {r['runs']:>4} {ci:>26} {p:>9} {a:>5}  {r['status']}")
     if len(rows) > top:
         log(f"    ... {len(rows) - top} more in {out / 'summary.csv'}")
-    log(f"wrote {', '.join(p.name for p in written)} to {out}")
+    log(f"wrote {len(written)} files to {out}: {', '.join(p.name for p in written)}")
     return written

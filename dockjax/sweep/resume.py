@@ -183,7 +183,7 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
                     atomic_savez(chunks_dir / spec.name, res)
                     computed += 1
                     seconds = float(res["wall_s"][0]) * len(spec.seeds)
-                    key = (spec.algorithm, spec.pop, spec.iters)
+                    key = (spec.label, spec.pop, spec.iters)
                     times.setdefault(key, []).append(seconds)
                     bar.update(spec.n_real)
                     t = times[key]
