@@ -12,16 +12,17 @@ part of the library it runs, so that ``dockjax plan`` does not load the study ma
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import errno
-import json
-import math
+import io
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, Sequence
+from typing import Annotated, Literal, Sequence
 
 import numpy as np
 import tyro
@@ -29,6 +30,7 @@ import tyro
 from . import checks, config
 from .io import DamagedFileError
 from .runtime import check_memory, claim_devices, enable_compilation_cache, usable_cores, use_cpu_devices
+from .track import AxisModel
 
 __all__ = ["SweepArgs", "CompareArgs", "PlanArgs", "DemoArgs", "sweep", "compare", "plan", "demo", "main",
            "exit_with", "describe_failure", "check_out", "TrackArgs", "track"]
@@ -330,8 +332,9 @@ def compare(args: CompareArgs) -> int:
 # --------------------------------------------------------------------------------- plan
 @dataclass(frozen=True)
 class PlanArgs:
-    """Plan one certified docking trajectory and write trajectory.csv, summary.json, front.png and trajectory.png
-    into --out. Exit codes: 0 planned, 1 no trajectory meets the limits (the limit is named), 2 bad input."""
+    """Plan one certified docking trajectory and write trajectory.csv, summary.json and three figures (front.png,
+    trajectory.png, limits.png) into --out. Exit codes: 0 planned, 1 no trajectory meets the limits (the limit is
+    named), 2 bad input."""
 
     start: Pose = config.START
     """Measured cabin pose x y z [mm] pitch yaw roll [deg]."""
@@ -372,62 +375,62 @@ class PlanArgs:
     compare). Default: one per usable core for an optimiser, one for --method direct."""
 
 
+PLAN_OPTIONS = {"weights": "--weights", "rate": "--rate", "method": "--method", "pop_size": "--pop",
+                "n_iter": "--iters", "seed": "--seed", "refine_steps": "--refine-steps", "n_front": "--n-front",
+                "start": "--start", "goal": "--goal", "arm_distance": "--arm-distance",
+                "interval_bounds": "--interval-bounds"}
+"""The library's argument names of a plan and the options that give them."""
+
+
+def _as_option(message: str, names: dict[str, str]) -> str:
+    """A library error naming an argument (``"rate must be ..."``) as one naming its option."""
+    head, sep, rest = message.partition(" ")
+    return f"{names[head]}{sep}{rest}" if head in names else message
+
+
+def _make_plan(problem, weights, rate: float, **options):
+    """:func:`dockjax.plan.plan` with the command line's failure: ``(plan, 0)``, or
+    ``(None, 1)`` after one line naming the limit no trajectory meets."""
+    from .plan import PlanError
+    from .plan import plan as make_plan
+
+    enable_compilation_cache()
+    try:
+        return make_plan(problem, weights=weights, rate=rate, **options), 0
+    except PlanError as exc:
+        print(f"no plan: {exc}", file=sys.stderr)
+        return None, 1
+
+
 def plan(args: PlanArgs) -> int:
     """Validate, plan, certify, write."""
     from . import select
-    from .plan import PlanError, explain_text, load_limits, write_plan
-    from .plan import plan as make_plan
+    from .plan import check_options, explain_text, load_limits, write_plan
     from .problem import DockingProblem
 
-    for name in ("start", "goal"):
-        if not all(math.isfinite(v) for v in getattr(args, name)):
-            return _error(f"--{name} must be six finite numbers, got {list(getattr(args, name))}")
-    if not (math.isfinite(args.rate) and args.rate > 0):
-        return _error(f"--rate must be > 0, got {args.rate}")
-    if args.pop < 4 or args.iters < 1:
-        return _error(f"--pop must be >= 4 and --iters >= 1, got {args.pop} and {args.iters}")
-    if args.refine_steps < 0:
-        return _error(f"--refine-steps must be >= 0, got {args.refine_steps}")
-    if not 2 <= args.n_front <= 200:
-        return _error(f"--n-front must lie in [2, 200], got {args.n_front}")
-    if not 0 <= args.seed < 2**63:
-        return _error(f"--seed must lie in [0, 2**63), got {args.seed}")
-    try:
-        if args.method != "direct":
-            check_memory(2 * args.pop * config.BYTES_PER_CANDIDATE, "--pop")
-        check_memory(6 * config.INTERVAL_BOUNDS[1] * max(args.interval_bounds[1], 1.0) * args.rate * 8 * 100,
-                     "--rate over the longest trajectory")
-    except ValueError as exc:
-        return _error(str(exc))
-    if args.rate > config.MAX_RATE:
-        return _error(f"--rate must be at most {config.MAX_RATE:g} Hz, got {args.rate:g}")
     weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
     try:
+        check_options(weights, args.rate, args.method, args.pop, args.iters, args.seed, args.refine_steps,
+                      args.n_front)
+        if args.method != "direct":
+            check_memory(2 * args.pop * config.BYTES_PER_CANDIDATE, "--pop")
+        check_memory(config.N_INTERVALS * max(args.interval_bounds[1], 1.0) * args.rate * 8 * 100,
+                     "--rate over the longest trajectory")
+        check_out(args.out)
         # before any JAX computation (DockingProblem computes); the direct method solves one
         # trajectory at a time, which one device does fastest
         claim_devices(args.devices if args.devices is not None or args.method != "direct" else 1)
-        select.check_weights(weights, 2)
         extra = load_limits(args.limits) if args.limits is not None else {}
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
                                  interval_bounds=args.interval_bounds, **extra)
     except ValueError as exc:
-        return _error(str(exc))
-    try:
-        check_out(args.out)
-    except ValueError as exc:
-        return _error(str(exc))
-    enable_compilation_cache()
-    try:
-        p = make_plan(problem, weights=weights, rate=args.rate, method=args.method, pop_size=args.pop,
-                      n_iter=args.iters, seed=args.seed, refine_steps=args.refine_steps, n_front=args.n_front,
-                      check_sensitivities=args.explain)
-    except PlanError as exc:
-        print(f"no plan: {exc}", file=sys.stderr)
-        return 1
-    try:
-        files = write_plan(p, args.out)
-    except OSError as exc:
-        return _error(f"--out {args.out} cannot be written: {exc}")
+        return _error(_as_option(str(exc), PLAN_OPTIONS))
+    p, code = _make_plan(problem, weights, args.rate, method=args.method, pop_size=args.pop, n_iter=args.iters,
+                         seed=args.seed, refine_steps=args.refine_steps, n_front=args.n_front,
+                         check_sensitivities=args.explain)
+    if p is None:
+        return code
+    files = write_plan(p, args.out)
     print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g} (shortest feasible T = {p.settings['shortest_T_s']:.3f} s); "
           f"every limit certified at {args.rate:g} Hz and by the kernel's rigorous per-span maxima")
     if args.explain:
@@ -516,42 +519,22 @@ class TrackArgs:
     """Weights (w_T, w_jerk) of Eq. 26 choosing the planned trajectory."""
     rate: float = config.RATE
     """Controller rate [Hz]."""
-    mass: float = 1.0
-    """Effective inertia relative to the nominal (the drive command is an acceleration for the nominal)."""
-    damping: float = 2.0
-    """Viscous damping [1/s]."""
-    friction: float = 1.0
-    """Coulomb friction [joint units/s^2]."""
-    mass_error: float = 0.05
-    """Relative error of the controller's inertia estimate (feed-forward and default gains)."""
-    damping_error: float = 0.05
-    """Relative error of the controller's damping estimate."""
-    bandwidth: float = 10.0
-    """Closed-loop bandwidth of the default PID gains [Hz]."""
-    damping_ratio: float = 0.7
-    """Damping ratio of the default gains' complex pole pair."""
-    kp: float | None = None
-    """Proportional gain [1/s^2] (default: from --bandwidth)."""
-    ki: float | None = None
-    """Integral gain [1/s^3] (default: from --bandwidth)."""
-    kd: float | None = None
-    """Derivative gain [1/s] (default: from --bandwidth)."""
-    resolution: float = 1e-4
-    """Encoder resolution [joint units]; 0: exact measurement."""
+    model: Annotated[AxisModel, tyro.conf.OmitArgPrefixes] = AxisModel()
+    """Every joint's drive and servo loop (dockjax.track.AxisModel; the same for every joint)."""
     out: Path = Path("track")
     """Output folder."""
 
 
+TRACK_OPTIONS = {"rate": "--rate", "weights": "--weights", "start": "--start", "goal": "--goal",
+                 "interval_bounds": "--interval-bounds",
+                 **{f"model.{f.name}": f"--{f.name.replace('_', '-')}" for f in dataclasses.fields(AxisModel)}}
+"""The library's argument names of a tracking run and the options that give them."""
+
+
 def track(args: TrackArgs) -> int:
     """Validate, plan, simulate, write."""
-    from dataclasses import asdict
-
     from . import select
     from . import track as servo
-    from .io import atomic_write_text
-    from .plan import PlanError
-    from .plan import plan as make_plan
-    from .plots import plot_tracking
     from .problem import DockingProblem
 
     if args.move == "custom":
@@ -562,71 +545,29 @@ def track(args: TrackArgs) -> int:
         if args.start is not None or args.goal is not None:
             return _error(f"--start/--goal need --move custom (--move {args.move} is the paper's move)")
         start, goal = servo.PAPER_MOVES[args.move]
-    for name, pose in (("start", start), ("goal", goal)):
-        if not all(math.isfinite(v) for v in pose):
-            return _error(f"--{name} must be six finite numbers, got {list(pose)}")
-    model = servo.AxisModel(mass=args.mass, damping=args.damping, friction=args.friction, mass_error=args.mass_error,
-                            damping_error=args.damping_error, bandwidth=args.bandwidth,
-                            damping_ratio=args.damping_ratio, kp=args.kp, ki=args.ki, kd=args.kd,
-                            resolution=args.resolution)
     try:
         select.check_weights(args.weights, 2)
-        largest = servo.check_model(model, args.rate, config.N_JOINTS)
+        largest = servo.check_model(args.model, args.rate, config.N_JOINTS)
+        check_out(args.out)
+        use_cpu_devices(1)  # before any JAX computation: one trajectory, one device
         problem = DockingProblem(start=start, goal=goal, interval_bounds=args.interval_bounds)
     except ValueError as exc:
-        return _error(str(exc).replace("model.", "--").replace("_", "-") if "model." in str(exc) else str(exc))
-    try:
-        check_out(args.out)
-    except ValueError as exc:
-        return _error(str(exc))
-    use_cpu_devices(1)
-    enable_compilation_cache()
-    try:
-        p = make_plan(problem, weights=args.weights, rate=args.rate, check_sensitivities=False)
-    except PlanError as exc:
-        print(f"no plan: {exc}", file=sys.stderr)
-        return 1
-    result = servo.track(p.samples, model, args.rate)
-    q0, q1 = p.samples["position"][0], p.samples["position"][-1]
-    moving = [j for j in range(config.N_JOINTS) if abs(q1[j] - q0[j]) > 1e-9]
-    report = {
-        "move": args.move, "start": list(start), "goal": list(goal), "T_s": p.T, "jerk": p.jerk,
-        "rate_hz": args.rate, "largest_closed_loop_pole": largest,
-        "model": {k: v for k, v in asdict(model).items()},
-        "joints": {config.JOINT_NAMES[j]: {"unit": config.JOINT_UNITS[j],
-                                           "max_position_error": float(result.max_position_error[j]),
-                                           "max_velocity_error": float(result.max_velocity_error[j]),
-                                           "max_measured_velocity_error": float(result.max_measured_velocity_error[j])}
-                   for j in range(config.N_JOINTS)},
-    }
-    if args.move in servo.PAPER_ERRORS:
-        pe, ve = servo.PAPER_ERRORS[args.move]
-        report["paper"] = {"joint": config.JOINT_NAMES[servo.PAPER_JOINTS[args.move]], "max_position_error_mm": pe,
-                           "max_velocity_error_mm_s": ve}
-    cols = [result.t] + [a[:, j] for j in moving for a in (result.planned_position, result.position,
-                                                            result.planned_velocity, result.velocity)]
-    header = ["t [s]"] + [f"{config.JOINT_NAMES[j]}{k}" for j in moving
-                          for k in (" planned", " tracked", "_vel planned", "_vel tracked")]
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(args.out / "tracking.json", json.dumps(report, indent=2) + "\n")
-        table = np.stack(cols, 1)
-        atomic_write_text(args.out / "tracking.csv", ",".join(header) + "\n"
-                          + "\n".join(",".join(f"{v:.12g}" for v in row) for row in table) + "\n")
-        plot_tracking(result, moving[:2] if moving else [0], args.out / "tracking.png",
-                      title=f"servo tracking of the planned move (T = {p.T:.2f} s, {args.rate:g} Hz)")
-    except OSError as exc:
-        return _error(f"--out {args.out} cannot be written: {exc}")
+        return _error(_as_option(str(exc), TRACK_OPTIONS))
+    p, code = _make_plan(problem, args.weights, args.rate, check_sensitivities=False)
+    if p is None:
+        return code
+    result = servo.track(p.samples, args.model, args.rate)
+    files = servo.write_tracking(result, p, args.out, move=args.move, largest_pole=largest)
     print(f"planned T = {p.T:.3f} s; servo at {args.rate:g} Hz (largest closed-loop |z| = {largest:.4f})")
     print(f"{'joint':<8} {'max |position error|':>22} {'max |velocity error|':>22} {'measured velocity':>18}")
-    for j in moving:
+    for j in servo.moving_joints(p.samples):
         u = config.JOINT_UNITS[j]
         print(f"{config.JOINT_NAMES[j]:<8} {result.max_position_error[j]:>18.3g} {u:<3} "
               f"{result.max_velocity_error[j]:>16.3g} {u}/s {result.max_measured_velocity_error[j]:>12.3g} {u}/s")
-    if "paper" in report:
-        print(f"paper §6 ({report['paper']['joint']}, hardware): {report['paper']['max_position_error_mm']} mm, "
-              f"{report['paper']['max_velocity_error_mm_s']} mm/s")
-    print(f"  wrote {args.out / 'tracking.json'}, tracking.csv, tracking.png")
+    if args.move in servo.PAPER_ERRORS:
+        (pe, ve), joint = servo.PAPER_ERRORS[args.move], config.JOINT_NAMES[servo.PAPER_JOINTS[args.move]]
+        print(f"paper §6 ({joint}, hardware): {pe} mm, {ve} mm/s")
+    print(f"  wrote {', '.join(str(f) for f in files)}")
     return 0
 
 
@@ -634,6 +575,47 @@ def track(args: TrackArgs) -> int:
 COMMANDS = {"sweep": (SweepArgs, sweep), "compare": (CompareArgs, compare), "plan": (PlanArgs, plan),
             "track": (TrackArgs, track), "demo": (DemoArgs, demo)}
 """Subcommand → (options, function)."""
+
+
+def parse(argv: Sequence[str]):
+    """The options of ``dockjax ARGV`` (tyro), or an exit code: 0 after ``--help``, 2 after
+    one line ``error: …`` for anything tyro cannot parse (its framed message reduced to
+    the line that says what is wrong, and its suggestion)."""
+    captured = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(captured):
+            return tyro.extras.subcommand_cli_from_dict({name: opts for name, (opts, _) in COMMANDS.items()},
+                                                        args=list(argv), prog="dockjax")
+    except SystemExit as exc:
+        if not exc.code:
+            return 0
+        print(f"error: {_parse_error(captured.getvalue(), argv)}", file=sys.stderr)
+        return 2
+
+
+def _parse_error(text: str, argv: Sequence[str]) -> str:
+    """tyro's framed parse error as one line: the text between its first two rules, the
+    first suggestion after "Perhaps you meant", and where to find the help."""
+    raw = [re.sub(r"\[/?[a-z ]+\]", "", ln).strip(" │") for ln in text.splitlines()]
+    lines = [ln.strip(" ╭╮╰╯─") for ln in raw]
+    blocks, block = [], []
+    for full, ln in zip(raw[1:], lines[1:]):  # the first line is the frame's title
+        if full and set(full) <= set("-─ "):
+            blocks.append(block)
+            block = []
+        elif ln:
+            block.append(ln)
+    blocks.append(block)
+    message = " ".join(blocks[0]) if blocks and blocks[0] else (lines[0] if lines else "cannot parse the options")
+    message = re.sub(r"\s+\.$", ".", message)
+    hint = ""
+    for b in blocks[1:]:
+        if b and b[0].startswith("Perhaps you meant"):
+            hint = f"; perhaps you meant {b[1].split()[0]}" if len(b) > 1 else ""
+        elif b and b[0].startswith("Available subcommands"):
+            hint = f"; {b[0][0].lower()}{b[0][1:]}"
+    command = next((a for a in argv if a in COMMANDS), None)
+    return f"{message}{hint} (see dockjax {command + ' ' if command else ''}--help)"
 
 
 def describe_failure(exc: BaseException) -> tuple[int, str]:
@@ -644,6 +626,9 @@ def describe_failure(exc: BaseException) -> tuple[int, str]:
         return 130, "interrupted; every finished result is saved (files are only ever replaced whole)"
     if isinstance(exc, DamagedFileError):
         return 1, str(exc)
+    solve = sys.modules.get(f"{__package__}.solve")  # a PlanError can only come from a loaded solver
+    if solve is not None and isinstance(exc, solve.PlanError):
+        return 1, f"no plan: {exc}"
     if isinstance(exc, ValueError):
         return 2, str(exc)
     if isinstance(exc, MemoryError):
@@ -668,8 +653,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
     try:
-        args = tyro.extras.subcommand_cli_from_dict({name: opts for name, (opts, _) in COMMANDS.items()},
-                                                    args=argv, prog="dockjax")
+        args = parse(argv)
+        if isinstance(args, int):
+            return args
         run = next(fn for opts, fn in COMMANDS.values() if isinstance(args, opts))
         return run(args)
     except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 - one line per failure, see describe_failure

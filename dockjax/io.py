@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import tempfile
 import zipfile
 import zlib
@@ -16,7 +17,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["DamagedFileError", "atomic_write", "atomic_write_text", "atomic_savez", "load_npz", "checksum"]
+__all__ = ["DamagedFileError", "atomic_write", "atomic_write_text", "atomic_savez", "load_npz", "checksum",
+           "write_set"]
 
 CHECKSUM = "__sha256__"
 """The member of an ``.npz`` written by :func:`atomic_savez` that holds its checksum."""
@@ -88,3 +90,20 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
     if stored is not None and str(stored) != checksum(out):
         raise DamagedFileError(f"{path} is damaged: its contents do not match the checksum written with it")
     return out
+
+
+def write_set(out: str | os.PathLike, write: Callable[[Path], list[Path]]) -> list[Path]:
+    """Write a set of files into the folder ``out`` (created) as one: ``write(stage)`` writes
+    them into a temporary folder inside ``out`` and returns their paths; only when every
+    one is complete are they renamed into place. A failure while writing leaves the
+    previous set untouched and no temporary folder behind. Returns the final paths."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(dir=out, prefix=".stage-", suffix=".tmp"))
+    try:
+        written = write(stage)
+        for f in written:
+            os.replace(f, out / f.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return [out / f.name for f in written]

@@ -14,9 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import shutil
-import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +22,7 @@ import numpy as np
 
 from . import checks, config, plots, select, solve
 from .algorithms import ALGORITHMS
-from .io import atomic_write_text
+from .io import atomic_write_text, write_set
 from .metrics import nondominated_points
 from .optimize import optimize
 from .problem import DockingProblem
@@ -34,7 +31,8 @@ from .solve import PlanError
 from .trajectory import Trajectory, bucket_durations
 from .version import __version__
 
-__all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "load_limits", "write_plan", "METHODS"]
+__all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "explain_text", "check_options", "load_limits",
+           "write_plan", "METHODS"]
 
 
 @dataclass
@@ -53,6 +51,11 @@ class Plan:
     weights: tuple
     settings: dict = field(default_factory=dict)
     explanation: dict = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        binding = ", ".join(b["limit"] for b in self.explanation.get("binding", [])) or "none"
+        return (f"Plan(T={self.T:.4f} s, jerk={self.jerk:.5g}, {len(self.samples['t'])} samples at {self.rate:g} Hz, "
+                f"weights={tuple(float(w) for w in self.weights)}, binding limits: {binding})")
 
     def margins(self) -> dict:
         """Per joint: max |velocity|, |acceleration|, travel about home (from the samples),
@@ -262,7 +265,9 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
     return out
 
 
-def _check_common(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front):
+def check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front) -> tuple[np.ndarray, float]:
+    """:func:`plan`'s options checked (ValueError naming the option) and resolved: the
+    weights (2,) and the rate (Hz). Cheap: no JAX computation."""
     w = select.check_weights(weights, 2)
     rate = checks.rate(rate)
     checks.choice("method", method, METHODS)
@@ -296,7 +301,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     problem = problem or DockingProblem()
     if not isinstance(problem, DockingProblem):
         raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
-    w, rate = _check_common(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front)
+    w, rate = check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front)
     time_only = w[1] == 0
     shortest = _shortest(problem)
     if method == "direct":
@@ -431,18 +436,9 @@ def explain_text(why: dict) -> str:
 
 def write_plan(p: Plan, out: str | Path) -> list[Path]:
     """Write trajectory.csv, summary.json, front.png, trajectory.png and limits.png into
-    ``out``: all into a temporary folder inside it first, then each renamed into place, so
-    a failure while writing leaves the previous plan's files untouched."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(dir=out, prefix=".plan-", suffix=".tmp"))
-    try:
-        written = _write_plan_files(p, stage)
-        for f in written:
-            os.replace(f, out / f.name)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
-    return [out / f.name for f in written]
+    ``out`` as one set (:func:`dockjax.io.write_set`): a failure while writing leaves the
+    previous plan's files untouched."""
+    return write_set(out, lambda stage: _write_plan_files(p, stage))
 
 
 def _write_plan_files(p: Plan, out: Path) -> list[Path]:

@@ -53,7 +53,10 @@ is changed).
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -61,12 +64,13 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from . import checks, config
+from . import checks, config, plots
+from .io import atomic_write_text, write_set
 from .pytrees import pytree_dataclass
 from .trajectory import Trajectory, sample_bucket
 
 __all__ = ["AxisModel", "TrackResult", "PAPER_MOVES", "PAPER_ERRORS", "PAPER_JOINTS", "check_model",
-           "closed_loop_poles", "gains", "plant_step", "simulate", "track"]
+           "closed_loop_poles", "gains", "plant_step", "simulate", "track", "moving_joints", "write_tracking"]
 
 PAPER_MOVES: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = {
     "x": ((4.04, -5.0, -1515.0, 0.0, 0.0, 180.0), (-1.514, -5.0, -1515.0, 0.0, 0.0, 180.0)),
@@ -95,38 +99,39 @@ class AxisModel:
     """One joint's drive and servo loop (see the module docstring for the equations).
 
     Every field is a number (the same for every joint) or a 1-D array with one value per
-    joint; all are pytree leaves. Units: joint units (mm or °) and seconds.
+    joint (the annotations name the number); all are pytree leaves. Units: joint units (mm
+    or °) and seconds. ``dockjax track`` takes every field as an option (``--mass``, ...).
     """
 
-    mass: Any = 1.0
+    mass: float = 1.0
     """``m``: effective inertia relative to the nominal (dimensionless, > 0)."""
-    damping: Any = 2.0
+    damping: float = 2.0
     """``b``: viscous damping (1/s, ≥ 0): a mechanical time constant m/b of 0.5 s."""
-    friction: Any = 1.0
+    friction: float = 1.0
     """``f_c``: Coulomb friction (joint units/s², ≥ 0): 1 % of Table 2's 100 mm/s²."""
-    mass_error: Any = 0.05
+    mass_error: float = 0.05
     """``δ_m``: the controller's inertia estimate is ``m̂ = m (1 + δ_m)`` (> −1)."""
-    damping_error: Any = 0.05
+    damping_error: float = 0.05
     """``δ_b``: the controller's damping estimate is ``b̂ = b (1 + δ_b)`` (> −1)."""
-    bandwidth: Any = 10.0
+    bandwidth: float = 10.0
     """``f_bw``: closed-loop bandwidth of the default gains (Hz, > 0), 1/100 of the 1 kHz
     servo rate."""
-    damping_ratio: Any = 0.7
+    damping_ratio: float = 0.7
     """``ζ`` of the default gains' complex pole pair (> 0)."""
-    kp: Any = None
+    kp: float | None = None
     """``K_p`` (1/s², ≥ 0); None: from the bandwidth."""
-    ki: Any = None
+    ki: float | None = None
     """``K_i`` (1/s³, ≥ 0); None: from the bandwidth."""
-    kd: Any = None
+    kd: float | None = None
     """``K_d`` (1/s, ≥ 0); None: from the bandwidth."""
-    ka_ff: Any = 1.0
+    ka_ff: float = 1.0
     """``k_a``: acceleration feed-forward gain (≥ 0; 0: none)."""
-    kv_ff: Any = 1.0
+    kv_ff: float = 1.0
     """``k_v``: velocity feed-forward gain (≥ 0; 0: none)."""
-    resolution: Any = 1e-4
+    resolution: float = 1e-4
     """``q``: encoder resolution (joint units, ≥ 0; 0: exact measurement); 0.1 µm on the
     linear joints."""
-    velocity_filter: Any = 0.0
+    velocity_filter: float = 0.0
     """``τ``: time constant (s, ≥ 0) of the low-pass on the differenced error (and measured
     velocity); 0: none."""
 
@@ -434,3 +439,51 @@ def track(trajectory_or_samples: Trajectory | dict, model: AxisModel = AxisModel
         max_measured_velocity_error=np.max(np.abs(out["measured_velocity"] - vel), axis=0),
         model=model, rate=rate,
     )
+
+
+def moving_joints(samples: dict) -> list[int]:
+    """The joints whose planned position changes between the first and the last sample."""
+    q = np.asarray(samples["position"])
+    return [j for j in range(q.shape[1]) if abs(q[-1, j] - q[0, j]) > 1e-9]
+
+
+def write_tracking(result: TrackResult, plan, out, *, move: str = "custom", largest_pole: float | None = None
+                   ) -> list[Path]:
+    """Write ``tracking.json`` (the move, the plan's T and jerk, the axis model, each joint's
+    largest errors and, for the paper's moves, its measured ones), ``tracking.csv``
+    (planned and tracked position and velocity of the moving joints at every tick) and
+    ``tracking.png`` into ``out``, as one set (:func:`dockjax.io.write_set`). ``plan``: the
+    :class:`dockjax.plan.Plan` that was tracked."""
+    moving = moving_joints(plan.samples)
+    report = {
+        "move": move, "start": plan.problem.start.tolist(), "goal": plan.problem.goal.tolist(), "T_s": plan.T,
+        "jerk": plan.jerk, "rate_hz": result.rate, "largest_closed_loop_pole": largest_pole,
+        "model": {f.name: (np.asarray(getattr(result.model, f.name)).tolist()
+                           if getattr(result.model, f.name) is not None else None)
+                  for f in dataclasses.fields(result.model)},
+        "joints": {config.JOINT_NAMES[j]: {"unit": config.JOINT_UNITS[j],
+                                           "max_position_error": float(result.max_position_error[j]),
+                                           "max_velocity_error": float(result.max_velocity_error[j]),
+                                           "max_measured_velocity_error": float(result.max_measured_velocity_error[j])}
+                   for j in range(len(result.max_position_error))},
+    }
+    if move in PAPER_ERRORS:
+        pe, ve = PAPER_ERRORS[move]
+        report["paper"] = {"joint": config.JOINT_NAMES[PAPER_JOINTS[move]], "max_position_error_mm": pe,
+                           "max_velocity_error_mm_s": ve}
+    cols = [result.t] + [a[:, j] for j in moving for a in (result.planned_position, result.position,
+                                                            result.planned_velocity, result.velocity)]
+    header = ["t [s]"] + [f"{config.JOINT_NAMES[j]}{k}" for j in moving
+                          for k in (" planned", " tracked", "_vel planned", "_vel tracked")]
+    table = np.stack(cols, 1)
+
+    def write(stage: Path) -> list[Path]:
+        files = [atomic_write_text(stage / "tracking.json", json.dumps(report, indent=2) + "\n"),
+                 atomic_write_text(stage / "tracking.csv", ",".join(header) + "\n"
+                                   + "\n".join(",".join(f"{v:.12g}" for v in row) for row in table) + "\n")]
+        files.append(plots.plot_tracking(result, moving[:2] if moving else [0], stage / "tracking.png",
+                                         title=f"servo tracking of the planned move (T = {plan.T:.2f} s, "
+                                               f"{result.rate:g} Hz)"))
+        return files
+
+    return write_set(out, write)
