@@ -269,6 +269,9 @@ class CompareArgs:
     best_known_points: int = config.BEST_KNOWN["n_points"]
     """Time caps of the best-known front's ε-constraint sweep (>= 2); the front is cached by problem identity in
     $DOCKJAX_FRONTS or ~/.cache/dockjax/fronts, shared with dockjax sweep."""
+    best_known_anchors: int = config.BEST_KNOWN["n_exact"]
+    """Time caps of the best-known front solved by sequential quadratic programming (>= 2), the anchors that the
+    refined caps start from."""
     best_known_steps: int = config.BEST_KNOWN["steps"]
     """Refinement steps per time cap of the best-known front."""
     top: int = 10
@@ -300,6 +303,7 @@ def compare(args: CompareArgs) -> int:
             configs[preset] = paper_config(preset, seeds=args.seeds, pop=args.pop, iters=args.iters,
                                            algorithms=args.algorithms, refine_steps=args.refine_steps,
                                            best_known={"n_points": args.best_known_points,
+                                                       "n_exact": args.best_known_anchors,
                                                        "steps": args.best_known_steps}, devices=None)
         except ConfigError as exc:
             errors.append(str(exc))
@@ -605,8 +609,8 @@ def _parse_error(text: str, argv: Sequence[str]) -> str:
             block = []
         elif ln:
             block.append(ln)
-    blocks.append(block)
-    message = " ".join(blocks[0]) if blocks and blocks[0] else (lines[0] if lines else "cannot parse the options")
+    blocks = [b for b in blocks + [block] if b]  # a plain-text frame draws a rule under its title too
+    message = " ".join(blocks[0]) if blocks else (lines[0] if lines else "cannot parse the options")
     message = re.sub(r"\s+\.$", ".", message)
     hint = ""
     for b in blocks[1:]:

@@ -1,25 +1,41 @@
-"""Shared fixtures. ``tests/reference.py`` is the independent reference (no dockjax code)."""
+"""Shared fixtures. ``tests/reference.py`` is the independent reference (no dockjax code).
+
+The suite runs under ``pytest -n 2`` (pytest-xdist). Expensive artefacts — a compare run, a
+sweep folder, a plan of the wide preset, pymoo's NSGA-II on ZDT1 — are made once per test
+run, whichever worker asks first (:func:`run_once`), and shared with the other worker.
+Property tests take their example counts from a hypothesis profile: ``ci`` (the default)
+or ``thorough`` (``--hypothesis-profile thorough``) for a longer hunt.
+"""
 
 from __future__ import annotations
 
+import fcntl
 import os
 import pathlib
+import pickle
 import sys
+from typing import Any, Callable
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 
-# Test processes (both xdist workers) and the CLI subprocesses of the tests share JAX's
-# persistent compilation cache, so a computation compiled in one is reused by the others
-# (tests that use the same shapes are aligned on purpose: e.g. the compare.py test and the
-# refine tests). Test-only; the library never sets it.
+# Test processes (both xdist workers) and the few CLI subprocesses of the tests share JAX's
+# persistent compilation cache, so a computation compiled in one is reused by the others.
+# Test-only; the library never sets it.
 CACHE = ROOT / ".pytest-jax-cache"
 os.environ.setdefault("DOCKJAX_CACHE", str(CACHE))
-os.environ.setdefault("DOCKJAX_FRONTS", str(CACHE / "fronts"))  # best-known fronts of the sweep tests
+os.environ.setdefault("DOCKJAX_FRONTS", str(CACHE / "fronts"))  # best-known fronts of the studies
+
+settings.register_profile("ci", max_examples=25, deadline=None, database=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("thorough", max_examples=400, deadline=None, database=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 def pytest_configure(config):
@@ -28,6 +44,36 @@ def pytest_configure(config):
     CACHE.mkdir(exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(CACHE))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    jax.devices()  # one CPU device per test process, whatever a command run in-process asks for
+
+
+@pytest.fixture(scope="session")
+def run_once(tmp_path_factory) -> Callable[[str, Callable[[pathlib.Path], Any]], Any]:
+    """``run_once(name, make)``: ``make(folder)`` computed once per test run across the xdist
+    workers (a file lock; the value pickled beside its folder), then returned to every
+    caller. ``folder`` is a fresh directory shared by the workers, for files ``make``
+    writes."""
+    root = tmp_path_factory.getbasetemp()
+    root = root.parent if os.environ.get("PYTEST_XDIST_WORKER") else root  # shared by the workers
+    values: dict[str, Any] = {}
+
+    def get(name: str, make: Callable[[pathlib.Path], Any]) -> Any:
+        if name in values:
+            return values[name]
+        folder = root / f"shared-{name}"
+        with open(root / f"shared-{name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            done = root / f"shared-{name}.pkl"
+            if done.exists():
+                value = pickle.loads(done.read_bytes())
+            else:
+                folder.mkdir(exist_ok=True)
+                value = make(folder)
+                done.write_bytes(pickle.dumps(value))
+        values[name] = value
+        return value
+
+    return get
 
 
 @pytest.fixture
@@ -42,3 +88,60 @@ def x64():
 
     with jax.enable_x64(True):
         yield
+
+
+def _cli(argv: list[str]) -> tuple[int, str]:
+    """``dockjax ARGV`` in this process: (exit code, what it printed)."""
+    import contextlib
+    import io
+
+    from dockjax import cli
+
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        code = cli.main(argv)
+    return code, text.getvalue()
+
+
+@pytest.fixture(scope="session")
+def paper_plan(run_once):
+    """``dockjax plan --rate 200`` (the paper's move, the compromise of Eq. 26), made once:
+    its folder."""
+    def make(folder):
+        code, _ = _cli(["plan", "--rate", "200", "--out", str(folder / "plan")])
+        assert code == 0
+        return folder / "plan"
+
+    return run_once("paper-plan", make)
+
+
+@pytest.fixture(scope="session")
+def wide_time_plan(run_once):
+    """The wide preset's shortest-time plan, explained and checked by re-planning:
+    ``dockjax plan --select time --interval-bounds 0.5 10 --explain --rate 200``, made once.
+    → (its folder, what it printed)."""
+    def make(folder):
+        code, text = _cli(["plan", "--select", "time", "--interval-bounds", "0.5", "10", "--explain", "--rate", "200",
+                           "--out", str(folder / "plan")])
+        assert code == 0
+        return folder / "plan", text
+
+    return run_once("wide-time-plan", make)
+
+
+@pytest.fixture(scope="session")
+def wide_compromise_plan(run_once):
+    """``plan(make_problem("wide"), weights=(1, 1))`` with its sensitivities checked, made once."""
+    from dockjax.plan import plan
+    from dockjax.problem import make_problem
+
+    return run_once("wide-compromise-plan", lambda _: plan(make_problem("wide"), weights=(1.0, 1.0)))
+
+
+@pytest.fixture(scope="session")
+def imocs_plan(run_once):
+    """``plan(weights=(1, 0), method="imocs", pop_size=16, n_iter=8, rate=50)``, made once."""
+    from dockjax.plan import plan
+
+    return run_once("imocs-plan", lambda _: plan(weights=(1, 0), method="imocs", pop_size=16, n_iter=8, rate=50,
+                                                  refine_steps=0))

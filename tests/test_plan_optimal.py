@@ -10,6 +10,7 @@ algorithm) from several starts, and the dense check of every limit.
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -59,49 +60,64 @@ def _reference_min_time(problem, x0):
     return lo + res.x * w
 
 
-def test_shortest_time_is_above_the_floor_dense_feasible_and_no_worse_than_an_independent_solver():
-    p = plan(WIDE, weights=(1.0, 0.0), check_sensitivities=False)
-    assert p.T >= _floor(WIDE) - 1e-9
-    _, ok = R.dense_check(WIDE, p.x[None], n_samples=40001)
+def _summary(wide_time_plan) -> dict:
+    """The wide preset's shortest-time plan (``dockjax plan --select time``), as written."""
+    folder, _ = wide_time_plan
+    s = json.loads((folder / "summary.json").read_text())
+    s["x"] = np.array(s["x"])
+    return s
+
+
+def test_shortest_time_is_above_the_floor_dense_feasible_and_no_worse_than_an_independent_solver(wide_time_plan):
+    p = _summary(wide_time_plan)
+    T, x = p["T_s"], p["x"]
+    assert T == pytest.approx(p["settings"]["shortest_T_s"], rel=1e-12) and T == pytest.approx(np.sum(x[:6]))
+    assert T >= _floor(WIDE) - 1e-9
+    _, ok = R.dense_check(WIDE, x[None], n_samples=40001)
     assert ok.all()
     x_ref = _reference_min_time(WIDE, R.straight_line_x(WIDE.start, WIDE.goal, (2.5,) * 6))
     T_ref = float(np.sum(x_ref[:6]))
     g_ref = R.dense_constraints(x_ref, WIDE.start, WIDE.goal, WIDE.arm_distance, WIDE.limits[:, 0],
                                 WIDE.limits[:, 1], WIDE.limits[:, 2], n_samples=40001)
     T_ref_feasible = T_ref * max(1.0, np.sqrt(g_ref.reshape(8, 3)[:, 2].max() + 1), g_ref.reshape(8, 3)[:, 1].max() + 1)
-    assert p.T <= T_ref_feasible * (1 + 1e-3), (p.T, T_ref, T_ref_feasible)
+    assert T <= T_ref_feasible * (1 + 1e-3), (T, T_ref, T_ref_feasible)
     # and the printed peers' floor: 30 mm of lateral travel at 2.5 mm/s and 100 mm/s²
     assert _floor(WIDE) == pytest.approx(12.025, abs=1e-9)
 
 
-@pytest.mark.parametrize("preset, weights", [("wide", (1.0, 1.0)), ("paper", (1.0, 1.0))])
-def test_the_chosen_plan_has_the_least_jerk_at_its_time_within_0_1_percent(preset, weights):
-    problem = make_problem(preset)
-    p = plan(problem, weights=weights, check_sensitivities=False)
-    _, ok = R.dense_check(problem, p.x[None], n_samples=40001)
+@pytest.mark.parametrize("preset", ["wide", "paper"])
+def test_the_chosen_plan_has_the_least_jerk_at_its_time_within_0_1_percent(preset, request):
+    if preset == "wide":  # plan(make_problem("wide"), weights=(1, 1))
+        problem, p = WIDE, request.getfixturevalue("wide_compromise_plan")
+        x, T, jerk = p.x, p.T, p.jerk
+    else:  # dockjax plan with its defaults: the paper's move, weights (1, 1)
+        problem, s = make_problem("paper"), json.loads((request.getfixturevalue("paper_plan") / "summary.json")
+                                                         .read_text())
+        x, T, jerk = np.array(s["x"]), s["T_s"], s["jerk"]
+    _, ok = R.dense_check(problem, x[None], n_samples=40001)
     assert ok.all()
     # another algorithm from several starts: projected Adam under T <= T_plan
-    starts = [R.straight_line_x(problem.start, problem.goal, (p.T / 6,) * 6)]
+    starts = [R.straight_line_x(problem.start, problem.goal, (T / 6,) * 6)]
     rng = np.random.default_rng(0)
     for _ in range(3):
         d = rng.uniform(-0.03, 0.03, 6)
-        h = p.T / 6 * (1 + d - d.mean())  # inside the box for both presets' T here
-        x = R.straight_line_x(problem.start, problem.goal, h)
-        x[6:] += rng.uniform(-0.02, 0.02, x.size - 6) * (problem.upper - problem.lower)[6:]
-        starts.append(np.clip(x, problem.lower, problem.upper))
+        h = T / 6 * (1 + d - d.mean())  # inside the box for both presets' T here
+        xs = R.straight_line_x(problem.start, problem.goal, h)
+        xs[6:] += rng.uniform(-0.02, 0.02, xs.size - 6) * (problem.upper - problem.lower)[6:]
+        starts.append(np.clip(xs, problem.lower, problem.upper))
     r = refine(problem, np.array(starts), steps=1500)
-    best = r.F[r.feasible & (r.F[:, 0] <= p.T * (1 + 1e-12)), 1]
+    best = r.F[r.feasible & (r.F[:, 0] <= T * (1 + 1e-12)), 1]
     assert best.size
-    for x in r.X[r.feasible]:
-        assert R.reference_objectives(x, problem.start, problem.goal, problem.arm_distance)[0] <= p.T * (1 + 1e-9)
-    T_p, J_p = R.reference_objectives(p.x, problem.start, problem.goal, problem.arm_distance)
-    assert T_p == pytest.approx(p.T, rel=1e-12) and J_p == pytest.approx(p.jerk, rel=1e-8)
+    for xr in r.X[r.feasible]:
+        assert R.reference_objectives(xr, problem.start, problem.goal, problem.arm_distance)[0] <= T * (1 + 1e-9)
+    T_p, J_p = R.reference_objectives(x, problem.start, problem.goal, problem.arm_distance)
+    assert T_p == pytest.approx(T, rel=1e-12) and J_p == pytest.approx(jerk, rel=1e-8)
     assert J_p <= best.min() * (1 + 1e-3), (J_p, best.min())
 
 
-def test_sensitivities_match_replanning_with_the_limit_changed_by_one_percent():
-    p = plan(WIDE, weights=(1.0, 0.0), check_sensitivities=False)
-    rows = p.explanation["binding"]
+def test_sensitivities_match_replanning_with_the_limit_changed_by_one_percent(wide_time_plan,
+                                                                           wide_compromise_plan):
+    rows = _summary(wide_time_plan)["explanation"]["binding"]
     assert rows, "the shortest time binds at least one limit"
     for row in rows:
         j = ["d_L1", "d_L2", "d_L3", "theta_L", "d_R1", "d_R2", "d_R3", "theta_R"].index(row["joint"])
@@ -111,24 +127,24 @@ def test_sensitivities_match_replanning_with_the_limit_changed_by_one_percent():
             arr = np.array(getattr(WIDE, key), float)
             arr[j] *= f
             other = DockingProblem(interval_bounds=WIDE.interval_bounds, **{key: arr})
-            T.append(plan(other, weights=(1.0, 0.0), check_sensitivities=False).T)
+            T.append(plan(other, weights=(1.0, 0.0), n_front=2, check_sensitivities=False).T)
         fd = (T[0] - T[1]) / (0.02 * row["value"])
         assert row["sensitivity"] == pytest.approx(fd, rel=0.02, abs=1e-3), row
     # the compromise plan: d jerk / d T against re-planning at T ± 1 %
-    q = plan(WIDE, weights=(1.0, 1.0), check_sensitivities=True)
-    why = q.explanation
+    why = wide_compromise_plan.explanation
     assert why["d_jerk_d_T"] < 0
     assert why["d_jerk_d_T"] == pytest.approx(why["d_jerk_d_T_finite_difference"], rel=0.02)
     for row in why["binding"]:
         assert row["sensitivity"] == pytest.approx(row["finite_difference"], rel=0.05, abs=1e-4), row
 
 
-def test_a_limit_that_does_not_bind_has_no_value():
-    p = plan(WIDE, weights=(1.0, 0.0), check_sensitivities=False)
-    binding = {r["limit"] for r in p.explanation["binding"]}
+def test_a_limit_that_does_not_bind_has_no_value(wide_time_plan):
+    p = _summary(wide_time_plan)
+    binding = {r["limit"] for r in p["explanation"]["binding"]}
     assert "d_L1 velocity" not in binding  # 400 mm/s against a few mm/s
     loose = dataclasses.replace(WIDE, velocity=np.asarray(WIDE.velocity) * np.array([2, 1, 1, 1, 1, 1, 1, 1.0]))
-    assert plan(loose, weights=(1.0, 0.0), check_sensitivities=False).T == pytest.approx(p.T, rel=1e-6)
+    assert plan(loose, weights=(1.0, 0.0), n_front=2, check_sensitivities=False).T == pytest.approx(p["T_s"],
+                                                                                                   rel=1e-6)
 
 
 def test_warm_planner_certifies_new_poses_within_one_percent_of_the_least_jerk():

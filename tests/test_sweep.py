@@ -1,19 +1,21 @@
 """Resumable hyper-parameter studies (dockjax.sweep, ``dockjax sweep``, experiments/sweep.py).
 
 Tiny settings throughout (pop 8, 3 iterations, 2 × 2 grid, 2 seeds, chunks of 2 → 4 chunks;
-the reference a pilot, so no best-known front is computed). The end-to-end runs are
-subprocesses of the real CLI; they share JAX's persistent compilation cache, so only the
-first one compiles.
+the reference a pilot, so no best-known front is computed). The command runs in this
+process (``cli.main``); a real process only where the test is about one: ``kill -9`` and
+Ctrl-C (the sweep signals itself after a given chunk, ``DOCKJAX_SWEEP_SIGNAL``) and the
+console script.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -35,16 +37,26 @@ def _main(argv: list[str]) -> int:
     return cli.main(["sweep", *argv])
 
 
-def _env(**extra) -> dict:
-    env = dict(os.environ)
-    env.pop("DOCKJAX_SWEEP_PAUSE", None)
-    env.update(extra)
-    return env
+def _run(out: Path, base=TINY, *extra: str) -> tuple[int, str]:
+    """The sweep in this process: (exit code, what it printed)."""
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        code = _main([*base, "--out", str(out), *extra])
+    return code, text.getvalue()
 
 
-def _cli(out: Path, *extra: str, base=TINY, **popen) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(SCRIPT), *base, "--out", str(out), *extra], cwd=ROOT,
-                          env=_env(), capture_output=True, text=True, timeout=300, **popen)
+def _process(out: Path, base=TINY, signal_after: str | None = None) -> subprocess.CompletedProcess:
+    """The sweep as a real process (one CPU device, as this one), optionally sending itself
+    a signal after a chunk; SIGINT as a terminal would deliver it, even when this test run
+    started with SIGINT ignored."""
+    env = {k: v for k, v in os.environ.items() if k != "DOCKJAX_SWEEP_SIGNAL"}
+    if signal_after:
+        env["DOCKJAX_SWEEP_SIGNAL"] = signal_after
+    # Python leaves SIGINT ignored in a child started with it ignored (nohup, `&` in a script)
+    shim = ("import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+            "sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')")
+    return subprocess.run([sys.executable, "-c", shim, str(SCRIPT), *base, "--devices", "1", "--out", str(out)],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
 
 
 def _table(out: Path) -> list[list[str]]:
@@ -56,15 +68,27 @@ def _table(out: Path) -> list[list[str]]:
 
 
 @pytest.fixture(scope="module")
-def uninterrupted(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
-    out = tmp_path_factory.mktemp("sweep") / "full"
-    proc = _cli(out)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return out, proc
+def uninterrupted(run_once) -> tuple[Path, str]:
+    def make(folder):
+        code, text = _run(folder / "full")
+        assert code == 0
+        return folder / "full", text
+
+    return run_once("sweep-tiny", make)
+
+
+@pytest.fixture(scope="module")
+def full_race(run_once) -> tuple[Path, str]:
+    def make(folder):
+        code, text = _run(folder / "race", RACE)
+        assert code == 0
+        return folder / "race", text
+
+    return run_once("sweep-race", make)
 
 
 def test_end_to_end_writes_table_report_and_figures(uninterrupted):
-    out, proc = uninterrupted
+    out, stdout = uninterrupted
     rows = _table(out)
     assert rows[0] == list(sweep.COLUMNS[:-1])
     assert len(rows) == 1 + 8
@@ -79,12 +103,12 @@ def test_end_to_end_writes_table_report_and_figures(uninterrupted):
         assert (out / name).stat().st_size > 0, name
     assert not [p for p in out.rglob(".*")], "temporary files left behind"
     fronts = np.load(out / "fronts.npz")
-    assert fronts["offsets"][-1] == len(fronts["F"]) and len(fronts["setting"]) == 8
+    assert fronts["offsets"][-1] == len(fronts["F"]) == len(fronts["X"]) and len(fronts["setting"]) == 8
     header = (out / "summary.csv").read_text().splitlines()[0].split(",")
     for col in ("HV_ci_low", "HV_ci_high", "IGD+_ci_low", "p_holm", "A12_best_over", "tied_with_best", "status"):
         assert col in header
     # two seeds cannot tell four settings apart: no winner is crowned
-    assert "cannot name a winner" in proc.stdout and "tied" in proc.stdout
+    assert "cannot name a winner" in stdout and "tied" in stdout
     report = (out / "report.md").read_text()
     assert "## Verdict" in report and "![eaf](eaf.png)" in report
 
@@ -92,54 +116,39 @@ def test_end_to_end_writes_table_report_and_figures(uninterrupted):
 def test_kill_and_resume_gives_the_same_table(uninterrupted, tmp_path):
     full, _ = uninterrupted
     out = tmp_path / "killed"
-    # the pause after each chunk gives a window to kill the sweep between chunks
-    proc = subprocess.Popen([sys.executable, str(SCRIPT), *TINY, "--out", str(out)], cwd=ROOT,
-                            env=_env(DOCKJAX_SWEEP_PAUSE="60"), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 240
-        while not list((out / "chunks").glob("round-*.npz")):
-            assert proc.poll() is None, "sweep ended before writing a chunk"
-            assert time.monotonic() < deadline, "no chunk file written in time"
-            time.sleep(0.1)
-        proc.send_signal(signal.SIGKILL)
-    finally:
-        proc.kill()
-        proc.wait()
+    killed = _process(out, signal_after="SIGKILL:1")
+    assert killed.returncode == -signal.SIGKILL
     before = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "chunks").glob("round-*.npz")}
-    assert 1 <= len(before) < 4
-    assert not (out / "runs.csv").exists()
-
-    resumed = _cli(out)
-    assert resumed.returncode == 0, resumed.stderr[-3000:]
-    assert f"resuming, {len(before)} of 4 chunks already done" in resumed.stdout
+    assert len(before) == 1 and not (out / "runs.csv").exists()
+    code, stdout = _run(out)
+    assert code == 0
+    assert "resuming, 1 of 4 chunks already done" in stdout
     after = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "chunks").glob("round-*.npz")}
     assert len(after) == 4
     assert {k: after[k] for k in before} == before  # chunks finished before the kill were not rewritten
     assert _table(out) == _table(full)
 
 
-def test_a_race_resumed_after_a_kill_equals_an_uninterrupted_race(tmp_path):
-    full = tmp_path / "race"
-    proc = _cli(full, base=RACE)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "round 0: seeds 0..1" in proc.stdout
+def test_ctrl_c_exits_130_without_a_traceback_and_the_sweep_resumes(uninterrupted, tmp_path):
+    full, _ = uninterrupted
+    out = tmp_path / "interrupted"
+    r = _process(out, signal_after="SIGINT:2")
+    assert r.returncode == 130, r.stderr[-800:]
+    assert "Traceback" not in r.stderr and "2 finished chunks are saved" in r.stderr
+    assert len(list((out / "chunks").glob("round-*.npz"))) == 2 and not (out / "runs.csv").exists()
+    assert not [p for p in out.rglob(".*") if p.name.endswith(".tmp")]
+    assert _run(out)[0] == 0
+    assert _table(out) == _table(full)
+
+
+def test_a_race_resumed_after_a_kill_equals_an_uninterrupted_race(full_race, tmp_path):
+    full, stdout = full_race
+    assert "round 0: seeds 0..1" in stdout
     out = tmp_path / "killed"
-    run = subprocess.Popen([sys.executable, str(SCRIPT), *RACE, "--out", str(out)], cwd=ROOT,
-                           env=_env(DOCKJAX_SWEEP_PAUSE="60"), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 240
-        # kill after round 0 (2 chunks) and the first chunk of round 1 are written
-        while len(list((out / "chunks").glob("round-*.npz"))) < 3:
-            assert run.poll() is None, "race ended early"
-            assert time.monotonic() < deadline, "chunk files not written in time"
-            time.sleep(0.1)
-        run.send_signal(signal.SIGKILL)
-    finally:
-        run.kill()
-        run.wait()
-    resumed = _cli(out, base=RACE)
-    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    # kill after round 0 (2 chunks) and the first chunk of round 1 are written
+    assert _process(out, RACE, signal_after="SIGKILL:3").returncode == -signal.SIGKILL
+    assert len(list((out / "chunks").glob("round-*.npz"))) == 3
+    assert _run(out, RACE)[0] == 0
     assert _table(out) == _table(full)
     assert (out / "summary.csv").read_text() == (full / "summary.csv").read_text()
     assert sorted(p.name for p in (out / "chunks").iterdir()) == sorted(p.name for p in (full / "chunks").iterdir())
@@ -149,8 +158,7 @@ def test_dask_backend_gives_the_same_table(uninterrupted, tmp_path):
     pytest.importorskip("distributed")
     full, _ = uninterrupted
     out = tmp_path / "dask"
-    proc = _cli(out, "--backend", "dask", "--workers", "2")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert _run(out, TINY, "--backend", "dask", "--workers", "2")[0] == 0
     assert _table(out) == _table(full)
 
 
@@ -164,6 +172,15 @@ def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == listing
     assert _main([*TINY, "--chunk", "3", "--out", str(out)]) == 2
     assert "chunk" in capsys.readouterr().err
+
+
+def test_a_folder_resumes_only_with_its_device_count(tmp_path):
+    cfg, _ = sweep.make_config(pop=(8,), iters=(3,), seeds=1, reference="pilot", devices=1)
+    sweep.prepare_folder(tmp_path / "s", cfg)
+    (tmp_path / "s" / "config.json").write_text('{"identity": ' + __import__("json").dumps(cfg.identity()) + "}")
+    other, _ = sweep.make_config(pop=(8,), iters=(3,), seeds=1, reference="pilot", devices=2)
+    with pytest.raises(sweep.ConfigError, match="devices: folder has 1, command gives 2"):
+        sweep.prepare_folder(tmp_path / "s", other)
 
 
 @pytest.mark.parametrize("extra, message", [
@@ -212,9 +229,10 @@ def test_unwritable_folder_exits_2(tmp_path, capsys):
     assert sorted(p.name for p in other.iterdir()) == ["notes.txt"]
 
 
-def test_an_unknown_parameter_exits_2_in_a_subprocess(tmp_path):
+def test_the_console_script_exits_2_with_one_line_for_an_unknown_parameter(tmp_path):
     out = tmp_path / "x"
-    proc = _cli(out, "--param", "imocs.beta=2")
+    proc = subprocess.run([str(Path(sys.executable).parent / "dockjax"), "sweep", "--param", "imocs.beta=2", "--out",
+                           str(out)], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
         "error: --param beta: unknown hyper-parameter for imocs; allowed: alpha_max, p_a, rho"]

@@ -55,8 +55,9 @@ than Ray: it is pip-installable pure Python, its ``LocalCluster`` starts in-proc
 about a second (the tests use it), it needs no daemon, and a chunk is one plain function
 call.
 
-Test hook: the environment variable ``DOCKJAX_SWEEP_PAUSE`` (seconds) makes the sweep
-sleep after each chunk it writes, so that a test can kill it between chunks.
+Test hook: the environment variable ``DOCKJAX_SWEEP_SIGNAL=NAME:N`` (e.g. ``SIGKILL:3``)
+makes the sweep send itself that signal right after writing its N-th chunk, so that a test
+can kill or interrupt it at a known point.
 """
 
 from __future__ import annotations

@@ -63,8 +63,10 @@ def paper_config(preset: str = "paper", *, seeds: int = config.N_SEEDS, pop: int
     if len(set(names)) != len(names):
         errors.append(f"--algorithms names an algorithm twice: {names}")
     best = {**config.BEST_KNOWN, **(best_known or {})}
-    if best["n_points"] < 2 or best["n_exact"] < 2 or best["steps"] < 1:
-        errors.append(f"the best-known front needs >= 2 points and anchors and >= 1 step, got {best}")
+    for key, option, lo in (("n_points", "--best-known-points", 2), ("n_exact", "--best-known-anchors", 2),
+                            ("steps", "--best-known-steps", 1)):
+        if best[key] < lo:
+            errors.append(f"{option} must be >= {lo}, got {best[key]}")
     if errors:
         raise ConfigError("; ".join(errors))
     settings = [Setting(a, pop, iters) for a in names]

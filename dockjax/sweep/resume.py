@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import time
@@ -136,6 +137,17 @@ def _check(path: Path, spec: ChunkSpec) -> bool:
     return True
 
 
+def _signal_hook() -> tuple[int, int] | None:
+    """The test hook ``DOCKJAX_SWEEP_SIGNAL=NAME:N`` (e.g. ``SIGKILL:3``): the sweep sends
+    itself that signal right after writing its N-th chunk, as a user's ``kill -9`` or Ctrl-C
+    at that moment would. → (signal number, N) or None."""
+    spec = os.environ.get("DOCKJAX_SWEEP_SIGNAL", "")
+    if not spec:
+        return None
+    name, _, count = spec.partition(":")
+    return int(getattr(signal, name)), int(count or 1)
+
+
 def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, backend: str = "local",
               scheduler: str | None = None, workers: int = 2, dask_processes: bool = False,
               progress: bool = True, log: Callable[[str], None] = print) -> int:
@@ -151,7 +163,7 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
             raise ConfigError(f"cannot connect to {where}: {exc}") from None
     else:
         be = LocalBackend()
-    pause = float(os.environ.get("DOCKJAX_SWEEP_PAUSE", "0") or 0)
+    hook = _signal_hook()
     computed = 0
     try:
         _write_config(out, cfg)
@@ -190,8 +202,8 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
                     bar.set_postfix_str(f"{spec.algorithm} pop {spec.pop}: " + (
                         f"first chunk (compile + run) {seconds:.1f} s" if len(t) == 1 else
                         f"{np.median(t[1:]):.2f} s/chunk"))
-                    if pause:
-                        time.sleep(pause)
+                    if hook and computed == hook[1]:
+                        os.kill(os.getpid(), hook[0])
                 seeds_done = seeds.stop
                 if cfg.race is None:
                     break
