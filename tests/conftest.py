@@ -140,8 +140,45 @@ def wide_compromise_plan(run_once):
 
 @pytest.fixture(scope="session")
 def imocs_plan(run_once):
-    """``plan(weights=(1, 0), method="imocs", pop_size=16, n_iter=8, rate=50)``, made once."""
+    """``plan(weights=(1, 0), method="imocs", pop_size=8, n_iter=3, rate=50)``, made once
+    (the compiled run of tests/test_cuckoo.py's single run)."""
     from dockjax.plan import plan
 
-    return run_once("imocs-plan", lambda _: plan(weights=(1, 0), method="imocs", pop_size=16, n_iter=8, rate=50,
+    return run_once("imocs-plan", lambda _: plan(weights=(1, 0), method="imocs", pop_size=8, n_iter=3, rate=50,
                                                   refine_steps=0))
+
+
+if os.environ.get("DOCKJAX_LOG_COMPILES"):  # diagnostics: every compilation, per worker
+    import logging
+
+    _handler = logging.FileHandler(f"/tmp/compiles-{os.environ.get('PYTEST_XDIST_WORKER', 'main')}.log")
+    _handler.setFormatter(logging.Formatter("%(created).3f %(message)s"))
+    logging.getLogger("jax").addHandler(_handler)
+    logging.getLogger("jax").setLevel(logging.WARNING)
+
+    @pytest.fixture(autouse=True)
+    def _mark_test(request):
+        logging.getLogger("jax").warning("TEST %s", request.node.nodeid)
+        yield
+
+
+@pytest.fixture(scope="session")
+def pymoo_zdt1_igd(run_once) -> float:
+    """The median IGD of pymoo's NSGA-II on its own ZDT1 (population 100, 100 generations,
+    seeds 0-4) against 1000 points of the analytic front, made once: the yardstick of the
+    optimisers' ZDT1 tests."""
+    def make(_):
+        import numpy as np
+        from pymoo.algorithms.moo.nsga2 import NSGA2
+        from pymoo.optimize import minimize
+        from pymoo.problems import get_problem
+
+        x = np.linspace(0.0, 1.0, 1000)
+        front = np.column_stack([x, 1.0 - np.sqrt(x)])
+        values = []
+        for seed in range(5):
+            F = minimize(get_problem("zdt1"), NSGA2(pop_size=100), ("n_gen", 100), seed=seed).F
+            values.append(float(np.sqrt(((front[:, None, :] - F[None]) ** 2).sum(-1)).min(1).mean()))
+        return float(np.median(values))
+
+    return run_once("pymoo-zdt1-igd", make)

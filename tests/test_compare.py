@@ -23,10 +23,11 @@ from dockjax.problem import make_problem
 from tests import reference as R
 
 SEEDS, POP, ITERS, REFINE = 2, 8, 3, 20
+# two of the four algorithms (each adds its own compiled programs, not a new path) and the memetic finish
 ARGS = ["compare", "--seeds", str(SEEDS), "--pop", str(POP), "--iters", str(ITERS), "--presets", "paper",
-        "--refine-steps", str(REFINE), "--best-known-points", "16", "--best-known-anchors", "3",
-        "--best-known-steps", "100", "--no-progress"]
-NAMES = ("nsga2", "mopso", "mocs", "imocs", "imocs+refine")
+        "--algorithms", "nsga2", "imocs", "--refine-steps", str(REFINE), "--best-known-points", "16",
+        "--best-known-anchors", "3", "--best-known-steps", "100", "--no-progress"]
+NAMES = ("nsga2", "imocs", "imocs+refine")
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +106,7 @@ def test_stored_indicators_equal_the_comparison_computed_from_its_parts(compare_
     scale = lambda F: (F - ideal) / (nadir - ideal)  # noqa: E731
     problem = make_problem("paper")
     made = {}
-    for name in ("nsga2", "mopso", "mocs", "imocs"):
+    for name in ("nsga2", "imocs"):
         made[name] = optimize(name, problem, seeds=range(SEEDS), pop_size=POP, n_iter=ITERS, driver="host")
     made["imocs+refine"] = refine_result(problem, made["imocs"], steps=REFINE)
     for name, r in made.items():
@@ -121,7 +122,7 @@ def test_the_best_known_front_is_dense_feasible_and_beats_every_run(compare_run)
     ref = load_npz(folder / "reference.npz")
     problem = make_problem("paper")
     assert str(ref["source"]) == "best-known" and len(ref["front"]) >= 4
-    np.testing.assert_allclose(problem.evaluate(ref["X"])[0], ref["front"], rtol=1e-12)
+    np.testing.assert_allclose(problem.evaluate(ref["X"], rows=16)[0], ref["front"], rtol=1e-12)
     _, ok = R.dense_check(problem, ref["X"], n_samples=4001)
     assert ok.all()
     fronts = _fronts(folder)
@@ -173,7 +174,7 @@ def test_running_compare_again_resumes_without_recomputing(compare_run, tmp_path
     before = (folder / "runs.csv").read_text()
     with contextlib.redirect_stdout(io.StringIO()) as text:
         assert cli.main([*ARGS, "--out", str(folder.parent)]) == 0
-    assert "5 of 5 chunks already done" in text.getvalue()
+    assert "3 of 3 chunks already done" in text.getvalue()
     assert {p.name: p.stat().st_mtime_ns for p in (folder / "chunks").iterdir()} == chunks
     assert (folder / "runs.csv").read_text() == before
 

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from pymoo.core.population import Population
 from pymoo.core.problem import Problem
@@ -28,7 +28,6 @@ from dockjax import pareto
 
 # A few population sizes only, so that jit compiles a handful of shapes.
 SIZES = (1, 3, 16, 32)
-FAST = settings(max_examples=25, deadline=None, database=None)  # writes nothing to disk
 
 rank_general = jax.jit(pareto.nondominated_rank)
 rank_2d = jax.jit(pareto.nondominated_rank_2d)
@@ -124,7 +123,6 @@ def test_total_violation_sums_positive_parts_like_pymoo():
     assert (got[:5] == 0).all()
 
 
-@FAST
 @given(populations(distinct_cv=True))
 def test_constrained_dominance_equals_pymoo_dominator_for_distinct_violations(pop):
     F, cv = pop
@@ -133,7 +131,6 @@ def test_constrained_dominance_equals_pymoo_dominator_for_distinct_violations(po
     np.testing.assert_array_equal(D, pymoo_dominance(F, cv))
 
 
-@FAST
 @given(populations(infeasible=True))
 def test_constrained_dominance_follows_documented_rule_with_equal_violations(pop):
     F, cv = pop
@@ -154,7 +151,6 @@ def test_equal_violation_is_where_we_differ_from_pymoo():
 
 
 # ----------------------------------------------------------------------------- ranks
-@FAST
 @given(populations(infeasible=False))
 def test_ranks_of_feasible_sets_equal_pymoo_nondominated_sorting(pop):
     F, cv = pop
@@ -165,7 +161,6 @@ def test_ranks_of_feasible_sets_equal_pymoo_nondominated_sorting(pop):
             np.testing.assert_array_equal(np.asarray(rank_2d(F, cv)), expected)
 
 
-@FAST
 @given(populations(m=2, integer=True, infeasible=False))
 def test_rank_2d_equals_pymoo_on_integer_sets_with_duplicates(pop):
     F, cv = pop
@@ -176,7 +171,6 @@ def test_rank_2d_equals_pymoo_on_integer_sets_with_duplicates(pop):
     np.testing.assert_array_equal(got, pymoo_ranks(F))
 
 
-@FAST
 @given(populations(distinct_cv=True))
 def test_constrained_ranks_equal_peel_of_pymoo_dominator(pop):
     F, cv = pop
@@ -187,7 +181,6 @@ def test_constrained_ranks_equal_peel_of_pymoo_dominator(pop):
             np.testing.assert_array_equal(np.asarray(rank_2d(F, cv)), expected)
 
 
-@FAST
 @given(populations(m=2))
 def test_rank_2d_equals_general_rank_with_ties_duplicates_and_equal_violations(pop):
     F, cv = pop
@@ -200,7 +193,6 @@ def test_rank_2d_equals_general_rank_with_ties_duplicates_and_equal_violations(p
     assert general.dtype == np.int32 and fast.dtype == np.int32
 
 
-@FAST
 @given(populations(m=2), st.sampled_from((1, 5, 16)))
 def test_rank_stop_after_keeps_the_fronts_it_needs(pop, stop_after):
     """Peeling stops at the first front that brings the ranked count to ``stop_after``;
@@ -286,7 +278,6 @@ def test_crowding_distance_equals_pymoo_per_front_without_duplicates(m, seed):
     _check_crowding_against_pymoo(F)
 
 
-@FAST
 @given(populations(integer=True, infeasible=False))
 def test_crowding_with_duplicates_orders_ties_by_index_like_pymoo_cd(pop):
     # documented rule: duplicates are kept and ordered by index; pymoo 0.6.2's "cd" agrees
@@ -422,7 +413,6 @@ lexsort_jit = jax.jit(lambda keys: pareto.lexsort(keys, packed=True))  # at ever
 reference_lexsort = jax.jit(lambda keys: jnp.lexsort(keys))
 
 
-@FAST
 @given(key_sets())
 def test_packed_lexsort_equals_jax_lexsort(keys):
     """``pareto.lexsort`` packs every key's ordinal and the index into one int64 and sorts

@@ -9,7 +9,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from hypothesis import example, given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from dockjax import DockingProblem
@@ -26,7 +26,6 @@ SAME_POSES = (
     ((700.0, 20.0, -1300.0, -1.0, 1.5, 175.0), 2800.0),
 )
 TRAVEL = (600.0, 150.0, 150.0, 15.0)
-SETTINGS = settings(max_examples=25, deadline=None)
 
 
 @functools.lru_cache(maxsize=None)
@@ -55,7 +54,6 @@ def _candidate(p, h, fractions):
     return np.concatenate([np.asarray(h), lo + np.asarray(fractions) * (hi - lo)])
 
 
-@SETTINGS
 @given(
     cfg=st.sampled_from(CONFIGS),
     h=intervals,
@@ -78,7 +76,6 @@ def test_scaling_time_scales_T_and_jerk(cfg, h, fractions, s):
     np.testing.assert_allclose(F[0], [T, jerk], rtol=1e-9)
 
 
-@SETTINGS
 @given(pose=st.sampled_from(SAME_POSES), h=intervals)
 def test_standing_still_has_zero_jerk(pose, h):
     start, d2 = pose
@@ -92,7 +89,6 @@ def test_standing_still_has_zero_jerk(pose, h):
     np.testing.assert_allclose(G[0], -1.0, atol=1e-9)
 
 
-@SETTINGS
 @given(cfg=st.sampled_from(CONFIGS), h=intervals, fractions=unit_vectors)
 def test_reversing_keeps_both_objectives(cfg, h, fractions):
     start, goal, d2 = cfg

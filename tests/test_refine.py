@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dockjax import DockingProblem
-from dockjax.best_known import best_known_front, reference_point
+from dockjax.best_known import best_known_front
 from dockjax.metrics import hypervolume
 from dockjax.refine import refine
 from dockjax.solve import straight_line
@@ -28,9 +28,9 @@ def problem():
 def imocs_result(problem):
     from dockjax.optimize import optimize
 
-    # the very call of the compare.py test (same shapes: one compilation, shared through
-    # the persistent compilation cache of the test run)
-    return optimize("imocs", problem, seeds=[0, 1], pop_size=8, n_iter=3, hv_ref=reference_point(problem))
+    # the shape of a sweep's pilot in the sweep tests (one compilation, shared through the
+    # persistent compilation cache of the test run)
+    return optimize("imocs", problem, seeds=[0, 1], pop_size=8, n_iter=3)
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ import functools
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from dockjax import DockingProblem
@@ -33,8 +33,10 @@ the reference itself (the kernel adds 1e-9 to every column)."""
 ABOVE = 0.01
 """conventions §6: the most a column may overstate."""
 ROWS = 4
-JERK_NODES = 24
-"""One node count for every drawn configuration: one compiled kernel per mode."""
+JERK_NODES = 8
+"""One node count for every drawn configuration: one compiled kernel per mode (the nodes
+of the jerk integral change F only, not the limit columns checked here; 8 is the paper
+problem's count, so its compiled kernels serve here too)."""
 MODES = ("bound", "adaptive", "taylor")
 N_DENSE = 20001
 
@@ -124,7 +126,6 @@ def _check(p_auto, problems, X, where):
 angle_move = st.floats(-40.0, 40.0, allow_nan=False)
 
 
-@settings(max_examples=30, deadline=None)
 @given(
     pos=st.tuples(st.floats(700, 800), st.floats(-50, 50), st.floats(-1500, -1300)),
     att=st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(170, 190)),

@@ -29,7 +29,7 @@ SCRIPT = ROOT / "experiments" / "sweep.py"
 TINY = ["--pop", "8", "--iters", "3", "--rho", "0.3", "0.5", "--alpha-max", "0.1", "0.2",
         "--seeds", "2", "--chunk", "2", "--no-progress", "--reference", "pilot"]
 RACE = ["--pop", "8", "--iters", "3", "--rho", "0.3", "0.5", "--alpha-max", "0.1", "0.2",
-        "--seeds", "5", "--chunk", "4", "--no-progress", "--reference", "pilot", "--race", "--race-min-seeds", "2"]
+        "--seeds", "5", "--chunk", "2", "--no-progress", "--reference", "pilot", "--race", "--race-min-seeds", "2"]
 FIGURES = ("heatmap_hv_imocs_pop8_it3.png", "anytime_hv.png", "eaf.png", "fronts_best_worst.png")
 
 
@@ -145,9 +145,9 @@ def test_a_race_resumed_after_a_kill_equals_an_uninterrupted_race(full_race, tmp
     full, stdout = full_race
     assert "round 0: seeds 0..1" in stdout
     out = tmp_path / "killed"
-    # kill after round 0 (2 chunks) and the first chunk of round 1 are written
-    assert _process(out, RACE, signal_after="SIGKILL:3").returncode == -signal.SIGKILL
-    assert len(list((out / "chunks").glob("round-*.npz"))) == 3
+    # kill after round 0 (4 chunks) and the first chunk of round 1 are written
+    assert _process(out, RACE, signal_after="SIGKILL:5").returncode == -signal.SIGKILL
+    assert len(list((out / "chunks").glob("round-*.npz"))) == 5
     assert _run(out, RACE)[0] == 0
     assert _table(out) == _table(full)
     assert (out / "summary.csv").read_text() == (full / "summary.csv").read_text()

@@ -14,9 +14,12 @@ import numpy as np
 import pytest
 
 SCRIPT = r"""
+import os
 import sys
 import jax
 jax.config.update("jax_num_cpu_devices", 2)
+jax.config.update("jax_compilation_cache_dir", os.environ["DOCKJAX_CACHE"])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 import jax.numpy as jnp
 import numpy as np
 from dockjax import extrema
