@@ -41,14 +41,14 @@ def import_base(rev: str, where: Path):
     return importlib.import_module("dockjax_base")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--base", required=True, help="git revision to compare against (e.g. HEAD~1, a tag)")
     ap.add_argument("--presets", nargs="+", default=["paper"], choices=sorted(PRESETS))
     ap.add_argument("--sizes", type=int, nargs="+", default=[150, 10_000])
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: one per usable core)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.repeats < 1 or min(args.sizes) < 1:
         ap.error("--sizes and --repeats must be >= 1")
     from dockjax.runtime import claim_devices

@@ -95,14 +95,14 @@ def median_time(fn, repeats: int) -> float:
     return float(np.median(times))
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[150, 10_000, 100_000])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--scipy-candidates", type=int, default=40)
     ap.add_argument("--devices", type=int, default=None,
                     help="CPU devices the rows are shared out over (default: one per usable core)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.repeats < 1 or args.scipy_candidates < 1 or min(args.sizes) < 1:
         ap.error("--sizes, --repeats and --scipy-candidates must be >= 1")
     from dockjax.runtime import claim_devices

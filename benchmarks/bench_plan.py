@@ -111,12 +111,12 @@ def _toppra_samples(traj):
     return t, traj(t), traj(t, 1), traj(t, 2)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--replans", type=int, default=20)
     ap.add_argument("--figure", type=Path, default=None, help="write the front with the peers' points here")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.repeats < 1 or args.replans < 1:
         ap.error("--repeats and --replans must be >= 1")
     problem = make_problem("wide")

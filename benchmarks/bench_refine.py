@@ -26,11 +26,11 @@ from dockjax.problem import make_problem
 from dockjax.refine import refine
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=200, help="refinement steps (default 200, refine's default)")
     ap.add_argument("--repeats", type=int, default=3, help="timed repeats after compile")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     problem = make_problem("paper")
     ref = reference_point(problem)
 

@@ -29,12 +29,12 @@ CONFIGS = {
 }
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=2400)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: one per usable core)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.n < 1 or args.repeats < 1:
         ap.error("--n and --repeats must be >= 1")
     from dockjax.runtime import claim_devices

@@ -21,7 +21,7 @@ from dockjax import DockingProblem
 from dockjax.optimize import optimize
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--pop", type=int, default=150)
     ap.add_argument("--iters", type=int, default=100)
@@ -29,7 +29,7 @@ def main() -> None:
     ap.add_argument("--pymoo-runs", type=int, default=5,
                     help="pymoo runs, each interleaved with a timed IMOCS run (0: skip pymoo)")
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     for name in ("pop", "iters", "runs"):
         if getattr(args, name) < (4 if name == "pop" else 1):
             ap.error(f"--{name} must be >= {4 if name == 'pop' else 1}, got {getattr(args, name)}")

@@ -25,11 +25,12 @@ import time
 
 import numpy as np
 
+from dockjax import config
 from dockjax.metrics import nondominated_points
 from dockjax.sweep import ChunkSpec, run_chunk
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--pop", type=int, default=150)
     ap.add_argument("--iters", type=int, default=100)
@@ -39,7 +40,7 @@ def main() -> None:
     ap.add_argument("--preset", default="paper", choices=("paper", "wide"))
     ap.add_argument("--devices", type=int, default=None, help="CPU devices (default: usable cores)")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved timed rounds")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     from dockjax.runtime import claim_devices
 
     try:
@@ -51,10 +52,12 @@ def main() -> None:
     rng = np.random.default_rng(0)
 
     def spec(offset: int) -> ChunkSpec:
-        return ChunkSpec(index=0, algorithm="imocs", preset=args.preset, pop=args.pop, iters=args.iters,
-                         run_ids=tuple(range(n)), seeds=tuple(range(offset, offset + n)),
-                         rho=tuple(rng.choice([0.3, 0.4, 0.5], n).tolist()),
-                         alpha_max=tuple(rng.choice([0.05, 0.1, 0.2], n).tolist()), n_real=n)
+        """A chunk of ``n`` runs, seeds from ``offset``, each with its own ρ and α_max."""
+        rho = rng.choice(config.SWEEP_RHO, n).tolist()
+        alpha_max = rng.choice(config.SWEEP_ALPHA_MAX, n).tolist()
+        return ChunkSpec(round=0, index=0, preset=args.preset, algorithm="imocs", pop=args.pop, iters=args.iters,
+                         settings=tuple(range(n)), seeds=tuple(range(offset, offset + n)),
+                         hyper=tuple((("rho", r), ("alpha_max", a)) for r, a in zip(rho, alpha_max)), n_real=n)
 
     t0 = time.perf_counter()
     pilot = run_chunk(spec(10_000), devices=devices)  # compiles; the indicators' reference front

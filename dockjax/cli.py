@@ -1,9 +1,11 @@
-"""The command line: ``dockjax sweep | compare | plan | demo`` (tyro), in one module.
+"""The command line: ``dockjax sweep | compare | plan | track | demo`` (tyro), in one module.
 
 Each subcommand is a frozen dataclass of options (defaults from :mod:`dockjax.config`) and a
-function that validates them before any compilation (bad input: one line on stderr, exit
-code 2, nothing written), then calls the library. The scripts in ``experiments/`` are thin
-wrappers: ``python experiments/sweep.py ARGS`` is ``dockjax sweep ARGS``.
+function that validates them before any compilation (bad input, a parse error included:
+one line on stderr, exit code 2, nothing written), then calls the library. The scripts in
+``experiments/`` are thin wrappers: ``python experiments/sweep.py ARGS`` is ``dockjax sweep
+ARGS``. The algorithms an option accepts are those of the registry
+(:data:`dockjax.algorithms.ALGORITHMS`).
 
 The command lines (not the library) turn on JAX's persistent compilation cache and ask
 for one CPU device per usable core (:mod:`dockjax.runtime`). Each subcommand imports the
@@ -28,6 +30,7 @@ import numpy as np
 import tyro
 
 from . import checks, config
+from .algorithms import ALGORITHMS
 from .io import DamagedFileError
 from .runtime import check_memory, claim_devices, enable_compilation_cache, usable_cores, use_cpu_devices
 from .track import AxisModel
@@ -35,7 +38,8 @@ from .track import AxisModel
 __all__ = ["SweepArgs", "CompareArgs", "PlanArgs", "DemoArgs", "sweep", "compare", "plan", "demo", "main",
            "exit_with", "describe_failure", "check_out", "TrackArgs", "track"]
 
-Algorithm = Literal["imocs", "mocs", "nsga2", "mopso"]
+Algorithm = Literal[tuple(ALGORITHMS)]
+Method = Literal[("direct", *ALGORITHMS)]
 Preset = Literal["paper", "wide"]
 Pose = tuple[float, float, float, float, float, float]
 
@@ -356,7 +360,7 @@ class PlanArgs:
     """Weights (w_T, w_jerk) of Eq. 26; overrides --select."""
     rate: float = config.RATE
     """Servo rate of the CSV [Hz]."""
-    method: Literal["direct", "imocs", "mocs", "nsga2", "mopso"] = "direct"
+    method: Method = "direct"
     """How the front is found: direct (shortest time, then the least jerk at --n-front time caps, by SQP) or an
     optimiser run (--pop, --iters, --seed, --refine-steps) whose chosen point is then solved to least jerk."""
     n_front: int = config.PLAN_FRONT

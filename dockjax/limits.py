@@ -46,7 +46,7 @@ BOUND_TOLERANCE = 1e-2
 
 
 SCREEN_SLOTS = 3
-"""Spans per candidate that :func:`_maxima_screened` sends through the exact root chain."""
+"""Spans per candidate that :func:`maxima_screened` sends through the exact root chain."""
 SCREEN_BAND = 0.05
 """Columns whose estimate lies within this fraction of the limit (either side) are exact."""
 SCREEN_SLACK = 0.009

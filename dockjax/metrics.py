@@ -19,9 +19,11 @@ Definitions (conventions §10), all for minimisation:
   (:func:`hypervolume_2d`).
 
 Every indicator function here is a pure ``jax.numpy`` function of fixed shapes: it jits and
-vmaps. Each takes an optional boolean ``valid`` mask (keyword) so that a fixed-shape
-population with infeasible or otherwise invalid rows can be scored inside ``jit``/``vmap``:
-masked rows are ignored entirely (their values may be anything, including NaN or inf).
+vmaps. Each takes an optional boolean ``valid`` mask — a keyword, except in
+:func:`hypervolume_2d` (``F, feasible, ref``) and :func:`indicators` (``F, valid,
+ref_front``), where it is positional — so that a fixed-shape population with infeasible or
+otherwise invalid rows can be scored inside ``jit``/``vmap``: masked rows are ignored
+entirely (their values may be anything, including NaN or inf).
 On an empty set (no valid row) GD, SP, IGD and IGD+ are NaN; ONVG and HV are 0. SP of a single
 point is 0 (there is no spread to measure).
 

@@ -190,7 +190,7 @@ def _check_request(algorithm, problem, params, seeds, pop_size, n_iter, hv_ref, 
             raise ValueError(f"give the hyper-parameters in params or as keywords, not both (got {sorted(hyper)})")
         if pop_size is not None and pop_size != params.pop_size:
             raise ValueError(f"pop_size {pop_size} differs from params.pop_size {params.pop_size}")
-        base.validate_params(params)
+        params = base.as_params(params)
         n_iter = n_iter if n_iter is not None else getattr(params, "max_iter", config.N_ITER)
     runs = base.n_runs(params)
     if runs is not None and runs != seeds.size:

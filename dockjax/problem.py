@@ -461,7 +461,7 @@ def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | No
     """Traceable batch scoring: X (n, n_var) → F (n, 2), G (n, 24) (and, ``with_need``, the
     rows (n,) whose bound treatment may overstate by more than :data:`BOUND_TOLERANCE`).
 
-    ``screen`` (default): the limit columns come from :func:`_maxima_screened` (cheap
+    ``screen`` (default): the limit columns come from :func:`dockjax.limits.maxima_screened` (cheap
     bounds everywhere, the exact root chain on the few spans that need it); candidates
     with more such spans than the screen's slots are re-scored by the full path.
     ``screen=False``: every span through the root chain (several times dearer; every column

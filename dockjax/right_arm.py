@@ -307,7 +307,7 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
     """Rigorous maxima of the right arm's axial, lift and lateral joints (travel about home,
     |velocity|, |acceleration|) by Taylor models on sub-spans, for a batch.
 
-    c: (n, 6 spans, 6 powers, 6 coords), h: (n, 6), ref: :func:`span_angles` of each row
+    c: (n, 6 spans, 6 powers, 6 coords), h: (n, 6), ref: :func:`dockjax.decoding.span_angles` of each row
     ((n, 6, 2) each); ``active`` (n,) bool: rows to score (default all; the others return
     0). → (n, 3 joints, 3).
 

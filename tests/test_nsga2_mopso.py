@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from dockjax import pareto
-from dockjax.algorithms import base, mopso, nsga2, variation
+from dockjax.algorithms import ALGORITHMS, base, mopso, nsga2, variation
 from dockjax.algorithms.variation import binary_tournament
 from dockjax.algorithms.zdt import ZDT1
 
@@ -265,7 +265,7 @@ def test_repository_rejects_dominated_and_duplicate_members():
 
 
 
-@pytest.mark.parametrize("name", ["imocs", "mocs", "nsga2", "mopso"])
+@pytest.mark.parametrize("name", list(ALGORITHMS))
 def test_the_scan_driver_the_host_driver_and_init_then_steps_agree(name):
     """``optimize``'s two drivers — ``"scan"`` (``base.run_batch``: one scan that scores at
     one site, ``init_ask``/``ask``, evaluate, ``init_tell``/``tell``) and ``"host"`` (a

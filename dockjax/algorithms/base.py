@@ -36,7 +36,7 @@ from .. import checks, pareto
 from ..pytrees import pytree_dataclass, static
 
 __all__ = [
-    "Algorithm", "Population", "param", "validate_params", "coerce", "run_axes", "n_runs", "stack_params",
+    "Algorithm", "Population", "param", "validate_params", "coerce", "as_params", "run_axes", "n_runs", "stack_params",
     "broadcast_params", "params_at", "pytree_dataclass", "static", "evaluate_unit", "evaluate_runs", "to_natural",
     "uniform_init_ask", "merge_and_survive", "run", "run_batch",
 ]
@@ -167,6 +167,17 @@ def coerce(params_type: type, name: str, value: Any) -> Any:
             raise ValueError(f"{what} must be {_rule(meta)}, got {value!r}")
         return int(arr)
     return arr.astype(np.float64) if arr.ndim else float(arr)
+
+
+def as_params(params: Any) -> Any:
+    """``params`` with every traced field in its type (:func:`coerce`: a float, an int, or a
+    float64 array with one value per run; a list such as ``rho=[0.3, 0.5]`` becomes an
+    array, a run axis), validated (:func:`validate_params`)."""
+    fields = [f for f in dataclasses.fields(params) if f.init and not f.metadata.get("static")]
+    params = dataclasses.replace(params, **{f.name: coerce(type(params), f.name, getattr(params, f.name))
+                                            for f in fields if "symbol" in f.metadata})
+    validate_params(params)
+    return params
 
 
 def run_axes(params: Any) -> Any:
