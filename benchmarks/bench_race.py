@@ -4,14 +4,14 @@ one of the settings the full grid cannot tell from the best.
     python benchmarks/bench_race.py [--rho 0.1 0.3 0.5 0.7 0.9] [--alpha-max 0.1 1 3 10 30]
                                     [--seeds 31] [--pop 150] [--iters 100] [--min-seeds 5] [--chunk 40]
                                     [--reference best-known] [--devices N]
-    python benchmarks/bench_race.py --rho 0.3 0.5 --alpha-max 0.1 0.2 --seeds 5 --pop 8 --iters 3 --min-seeds 2 --chunk 2 --reference pilot  # quick
+    python benchmarks/bench_race.py --seeds 5 --pop 8 --iters 3 --min-seeds 2 --chunk 2 --reference pilot  # quick
 
 Runs the full grid (every ρ × α_max setting of IMOCS on every seed) and the race over the
 same grid and seed budget, in the same process, against the same reference front (the
-best-known front, or with ``--reference pilot`` each study's pilot chunk; both study folders
-in a temporary directory), then prints the full grid's best setting and
-its tied set (Wilcoxon signed-rank against the best, Holm, α = 0.05), the race's
-survivors and winner, the runs each used and their wall times.
+best-known front, or with ``--reference pilot`` the front of a pilot chunk, the same seeds
+in both studies), both study folders in a temporary directory, then prints the full grid's
+best setting and its tied set (Wilcoxon signed-rank against the best, Holm, α = 0.05), the
+race's survivors and winner, the runs each used and their wall times.
 """
 
 from __future__ import annotations

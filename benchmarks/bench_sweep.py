@@ -1,20 +1,22 @@
 """Throughput of a sweep chunk, the extrapolated wall time of a 1000-run sweep, and pymoo.
 
-    python benchmarks/bench_sweep.py [--pop 150] [--iters 100] [--chunk 16] [--runs 1000]
+    python benchmarks/bench_sweep.py [--pop 150] [--iters 100] [--chunk 40] [--runs 1000]
                                      [--devices N] [--rounds 3] [--pymoo-runs 2]
     python benchmarks/bench_sweep.py --pop 8 --iters 3 --chunk 2 --rounds 1 --pymoo-runs 1  # quick
 
 Times :func:`dockjax.sweep.run_chunk` (one compiled vmapped IMOCS call over ``--chunk`` runs,
-each with its own seed, ρ and α_max, plus the indicators of every run) with the runs
-sharded over ``--devices`` CPU devices (default: one per usable core, as the sweep CLI),
-and, as the peer in the same process, on one device (XLA's intra-op threads only): the
-first call of each (compile + run), then ``--rounds`` interleaved rounds of one call each;
-medians are quoted. Extrapolates the wall time of a sweep of
-``--runs`` runs in chunks of that size (one compilation + ceil(runs / chunk) chunks, in
-process, no chunk-file I/O which is milliseconds). Then times pymoo's NSGA-II with the same
-budget (population ``--pop``, ``--iters`` + 1 generations) on the same compiled kernel (via
-:func:`dockjax.interop.as_pymoo_problem`) for ``--pymoo-runs`` runs, and prints the ratio of
-pymoo's time per run to the sweep's time per run.
+each with its own seed, ρ and α_max, plus the indicators of every run against the front of
+a pilot chunk at IMOCS's defaults, as a sweep's reference pilot) with the runs sharded over
+``--devices`` CPU devices (default: one per usable core, as the sweep CLI), and, as the
+peer in the same process, on one device (XLA's intra-op threads only): the first call of
+each (compile + run), then ``--rounds`` interleaved rounds of one call each; medians are
+quoted, and the compile time is the pilot's first call less a chunk's run. Extrapolates the
+wall time of a sweep of ``--runs`` runs in chunks of that size (one compilation +
+ceil(runs / chunk) chunks, in process, no chunk-file I/O which is milliseconds). Then times
+pymoo's NSGA-II with the same budget (population ``--pop``, ``--iters`` + 1 generations) on
+the same compiled kernel (via :func:`dockjax.interop.as_pymoo_problem`) for
+``--pymoo-runs`` runs, and prints the ratio of pymoo's time per run to the sweep's time per
+run.
 """
 
 from __future__ import annotations
@@ -51,19 +53,20 @@ def main(argv: list[str] | None = None) -> None:
     n = args.chunk
     rng = np.random.default_rng(0)
 
-    def spec(offset: int) -> ChunkSpec:
-        """A chunk of ``n`` runs, seeds from ``offset``, each with its own ρ and α_max."""
+    def spec(offset: int, defaults: bool = False) -> ChunkSpec:
+        """A chunk of ``n`` runs, seeds from ``offset``, each with its own ρ and α_max drawn
+        from the sweep's grid (``defaults``: IMOCS's defaults, as a sweep's pilot)."""
         rho = rng.choice(config.SWEEP_RHO, n).tolist()
         alpha_max = rng.choice(config.SWEEP_ALPHA_MAX, n).tolist()
+        hyper = ((),) * n if defaults else tuple((("rho", r), ("alpha_max", a)) for r, a in zip(rho, alpha_max))
         return ChunkSpec(round=0, index=0, preset=args.preset, algorithm="imocs", pop=args.pop, iters=args.iters,
-                         settings=tuple(range(n)), seeds=tuple(range(offset, offset + n)),
-                         hyper=tuple((("rho", r), ("alpha_max", a)) for r, a in zip(rho, alpha_max)), n_real=n)
+                         settings=tuple(range(n)), seeds=tuple(range(offset, offset + n)), hyper=hyper, n_real=n)
 
     t0 = time.perf_counter()
-    pilot = run_chunk(spec(10_000), devices=devices)  # compiles; the indicators' reference front
+    pilot = run_chunk(spec(10_000, defaults=True), devices=devices)  # compiles; the indicators' reference front
     pilot_s = time.perf_counter() - t0
     front = nondominated_points(pilot["front_F"])
-    ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": 1.1}
+    ref = {"front": front, "ideal": front.min(0), "nadir": front.max(0), "hv_ref": config.HV_REFERENCE}
     layouts = {"one device": 1, f"{devices} devices": devices} if devices > 1 else {"one device": 1}
     times = {k: [] for k in layouts}
     for d in layouts.values():  # compile every layout (and the indicators) before timing
@@ -91,8 +94,8 @@ def main(argv: list[str] | None = None) -> None:
         try:
             from pymoo.algorithms.moo.nsga2 import NSGA2
             from pymoo.optimize import minimize
-        except ImportError:
-            print("pymoo not installed: pip install 'dockjax[bench]'")
+        except ImportError as exc:
+            print(f"pymoo NSGA-II skipped: pymoo is not importable ({exc}); pip install 'dockjax[bench]'")
             return
         from dockjax.interop import as_pymoo_problem
         from dockjax.problem import make_problem

@@ -92,11 +92,14 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
     return out
 
 
-def write_set(out: str | os.PathLike, write: Callable[[Path], list[Path]]) -> list[Path]:
+def write_set(out: str | os.PathLike, write: Callable[[Path], list[Path]], owned: tuple[str, ...] = ()
+              ) -> list[Path]:
     """Write a set of files into the folder ``out`` (created) as one: ``write(stage)`` writes
     them into a temporary folder inside ``out`` and returns their paths; only when every
-    one is complete are they renamed into place. A failure while writing leaves the
-    previous set untouched and no temporary folder behind. Returns the final paths."""
+    one is complete are they renamed into place, and files named in ``owned`` (every file
+    the writer may make) that this set does not hold are removed, so that the folder never
+    mixes two sets. A failure while writing leaves the previous set untouched and no
+    temporary folder behind. Returns the final paths."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out, prefix=".stage-", suffix=".tmp"))
@@ -104,6 +107,8 @@ def write_set(out: str | os.PathLike, write: Callable[[Path], list[Path]]) -> li
         written = write(stage)
         for f in written:
             os.replace(f, out / f.name)
+        for name in set(owned) - {f.name for f in written}:
+            (out / name).unlink(missing_ok=True)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return [out / f.name for f in written]

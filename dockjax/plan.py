@@ -435,10 +435,15 @@ def explain_text(why: dict) -> str:
 
 
 def write_plan(p: Plan, out: str | Path) -> list[Path]:
-    """Write trajectory.csv, summary.json, front.png, trajectory.png and limits.png into
-    ``out`` as one set (:func:`dockjax.io.write_set`): a failure while writing leaves the
-    previous plan's files untouched."""
-    return write_set(out, lambda stage: _write_plan_files(p, stage))
+    """Write trajectory.csv, summary.json, front.png, trajectory.png and, when a binding
+    limit is worth something, limits.png (:func:`dockjax.plots.worth_drawing`) into ``out``
+    as one set (:func:`dockjax.io.write_set`): a failure while writing leaves the previous
+    plan's files untouched, and a limits.png of an earlier plan is removed."""
+    return write_set(out, lambda stage: _write_plan_files(p, stage), owned=PLAN_FILES)
+
+
+PLAN_FILES = ("trajectory.csv", "summary.json", "front.png", "trajectory.png", "limits.png")
+"""Every file :func:`write_plan` may write."""
 
 
 def _write_plan_files(p: Plan, out: Path) -> list[Path]:
@@ -467,6 +472,6 @@ def _write_plan_files(p: Plan, out: Path) -> list[Path]:
     s = p.samples
     files.append(plots.plot_joints(s, p.problem.limits, out / "trajectory.png", home=p.problem.home,
                                    title=f"planned joints, T = {p.T:.2f} s, jerk = {p.jerk:.4g}"))
-    if p.explanation:
+    if plots.worth_drawing(p.explanation):  # only where a limit is worth something
         files.append(plots.plot_sensitivities(p.explanation, out / "limits.png"))
     return files

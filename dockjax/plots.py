@@ -12,12 +12,14 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 from . import config
 from .io import atomic_write
 
 __all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence", "plot_heatmap",
-           "plot_median_iqr", "plot_front_groups", "plot_anytime", "plot_eaf", "plot_tracking", "plot_sensitivities"]
+           "plot_median_iqr", "plot_front_groups", "plot_anytime", "plot_eaf", "plot_tracking", "plot_sensitivities",
+           "worth_drawing"]
 
 MAX_PLOT_POINTS = 1000
 """Samples per line drawn by :func:`plot_joints` (a stride keeps the first and last)."""
@@ -40,9 +42,15 @@ def _finish(fig, ax, path, *, xlabel: str, ylabel: str, title: str, log_y: bool 
     if log_y:
         ax.set_yscale("log")
     ax.set_title(title)
-    ax.legend(fontsize=legend_size, loc="upper right")
+    _legend_outside(ax, legend_size)
     ax.grid(alpha=0.3)
     return save(fig, path)
+
+
+def _legend_outside(ax, size=None) -> None:
+    """The legend to the right of the axes, where it covers no data (the saved figure
+    grows to hold it)."""
+    ax.legend(fontsize=size, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
 
 
 def save(fig, path: str | os.PathLike) -> Path:
@@ -125,18 +133,31 @@ def plot_convergence(histories: dict[str, np.ndarray], path, *, title="") -> Pat
                    title=title or "convergence")
 
 
-def plot_heatmap(M: np.ndarray, rows, cols, path, *, xlabel: str, ylabel: str, title: str) -> Path:
-    """A value per grid cell, annotated. M: (len(rows), len(cols))."""
-    fig, ax = _axes(figsize=(1.2 * len(cols) + 2.5, 0.9 * len(rows) + 2))
+def plot_heatmap(M: np.ndarray, rows, cols, path, *, xlabel: str, ylabel: str, title: str, tied=None,
+                 best=None) -> Path:
+    """A value per grid cell, annotated. M: (len(rows), len(cols)). ``tied`` (same shape,
+    bool): cells not significantly worse than the best, framed and marked "="; ``best``
+    (row, column): the best cell, marked "★". The colour scale spans the values drawn,
+    however small their differences: the marks say which differences are significant."""
+    fig, ax = _axes(figsize=(1.2 * len(cols) + 2.5, 0.9 * len(rows) + 2.3))
     im = ax.imshow(M, origin="lower", cmap="viridis", aspect="auto")
+    tied = np.zeros(M.shape, bool) if tied is None else np.asarray(tied, bool)
     for i in range(len(rows)):
         for j in range(len(cols)):
-            ax.text(j, i, f"{M[i, j]:.3f}", ha="center", va="center", color="w", fontsize=8)
+            mark = "★ " if best is not None and (i, j) == tuple(best) else "= " if tied[i, j] else ""
+            ax.text(j, i, f"{mark}{M[i, j]:.3f}", ha="center", va="center", color="w", fontsize=8)
+            if tied[i, j] or mark:
+                ax.add_patch(Rectangle((j - 0.46, i - 0.46), 0.92, 0.92, fill=False, ec="w", lw=1.5))
     ax.set_xticks(range(len(cols)), [f"{a:g}" for a in cols])
     ax.set_yticks(range(len(rows)), [f"{r:g}" for r in rows])
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title)
+    if tied.any():
+        note = ("every setting is tied with the best: no difference is significant" if tied.all()
+                else "★ best, = tied with the best (not significantly worse)")
+        ax.set_title(f"{title}\n{note}", fontsize=9)
+    else:
+        ax.set_title(title)
     fig.colorbar(im, ax=ax)
     return save(fig, path)
 
@@ -222,50 +243,61 @@ def plot_eaf(surface_a: np.ndarray, surface_b: np.ndarray, diff: np.ndarray, lab
 def plot_tracking(result, joints, path, *, title: str = "", error: bool = True) -> Path:
     """Planned against tracked position and velocity of the ``joints`` (indices) of a
     :class:`dockjax.track.TrackResult` (the paper's Figs. 23–26): one row per joint, position
-    left and velocity right, the tracking error (tracked − planned) on a twin axis with
-    ``error``."""
+    left and velocity right, and with ``error`` the tracking error (tracked − planned) in
+    its own axes below each, on its own scale."""
     joints = [int(j) for j in np.atleast_1d(joints)]
     n = np.asarray(result.position).shape[1]
     if not joints or any(j < 0 or j >= n for j in joints):
         raise ValueError(f"joints must be indices from 0 to {n - 1}, got {joints!r}")
     names = config.JOINT_NAMES if n == config.N_JOINTS else tuple(f"joint {j}" for j in range(n))
     units = config.JOINT_UNITS if n == config.N_JOINTS else ("",) * n
-    fig, axes = _axes(len(joints), 2, figsize=(12, 3.6 * len(joints)), squeeze=False)
+    per_joint = 2 if error else 1
+    fig = Figure(figsize=(12, (4.6 if error else 3.6) * len(joints)))
+    grid = fig.add_gridspec(per_joint * len(joints), 2, height_ratios=[3, 1.4] * len(joints) if error else None)
     t = np.asarray(result.t)
     pairs = (("position", result.planned_position, result.position, ""),
              ("velocity", result.planned_velocity, result.velocity, "/s"))
     for row, j in enumerate(joints):
         for col, (what, planned, tracked, per) in enumerate(pairs):
-            ax = axes[row, col]
+            ax = fig.add_subplot(grid[per_joint * row, col])
             planned, tracked = np.asarray(planned)[:, j], np.asarray(tracked)[:, j]
             unit = f" [{units[j]}{per}]" if units[j] else ""
-            ax.plot(t, planned, color="C0", lw=1.5, label="planned")
-            ax.plot(t, tracked, color="C3", lw=1, ls="--", label="tracked")
+            ax.plot(t, tracked, color="C3", lw=0.8, alpha=0.7, label="tracked")
+            ax.plot(t, planned, color="C0", lw=1.5, ls="--", label="planned", zorder=3)  # visible over the noise
             ax.set_ylabel(f"{names[j]} {what}{unit}", fontsize=8)
-            ax.set_xlabel("t [s]", fontsize=8)
             ax.grid(alpha=0.3)
-            handles, labels = ax.get_legend_handles_labels()
-            if error:
-                twin = ax.twinx()
-                twin.plot(t, tracked - planned, color="0.6", lw=0.5, alpha=0.7, label="error (tracked − planned)")
-                twin.set_ylabel(f"error{unit}", fontsize=8, color="0.4")
-                ax.set_zorder(twin.get_zorder() + 1)  # the profiles above the error
-                ax.patch.set_visible(False)
-                h2, l2 = twin.get_legend_handles_labels()
-                handles, labels = handles + h2, labels + l2
-            ax.legend(handles, labels, fontsize=7, loc="upper right")
+            ax.legend(fontsize=7, loc="best")
             ax.set_title(f"{names[j]} {what}: max |error| = {np.max(np.abs(tracked - planned)):.3g}{unit}",
                          fontsize=9)
+            if error:
+                below = fig.add_subplot(grid[per_joint * row + 1, col], sharex=ax)
+                below.plot(t, tracked - planned, color="0.35", lw=0.8)
+                below.set_ylabel(f"error{unit}", fontsize=8)
+                below.grid(alpha=0.3)
+                below.set_xlabel("t [s]", fontsize=8)
+            else:
+                ax.set_xlabel("t [s]", fontsize=8)
     fig.suptitle(title or "servo tracking")
     fig.tight_layout()
     return save(fig, path)
 
 
-def plot_sensitivities(explanation: dict, path, *, title: str = "") -> Path:
-    """The marginal value of each binding limit of a plan (:func:`dockjax.plan.explain`): one
-    bar per limit, ``d objective / d limit`` scaled to a 1 % change of the limit (objective
-    units), the finite-difference check as a marker where present."""
+def worth_drawing(explanation: dict) -> list[dict]:
+    """The binding limits of a plan whose value is more than rounding: a 1 % change of the
+    limit moves the objective by more than 1e-6 of the largest such change (and by more
+    than 1e-12 at all)."""
     rows = explanation.get("binding", [])
+    effect = [abs(0.01 * r["sensitivity"] * r["value"]) for r in rows]
+    top = max(effect, default=0.0)
+    return [r for r, e in zip(rows, effect) if e > max(1e-6 * top, 1e-12)]
+
+
+def plot_sensitivities(explanation: dict, path, *, title: str = "") -> Path:
+    """The marginal value of each binding limit of a plan (:func:`dockjax.plan.explain`) that
+    is worth drawing (:func:`worth_drawing`): one bar per limit, ``d objective / d limit``
+    scaled to a 1 % change of the limit (objective units), the finite-difference check as a
+    marker where present."""
+    rows = worth_drawing(explanation)
     fig, ax = _axes(figsize=(6.5, 1.2 + 0.5 * max(len(rows), 1)))
     unit = "s" if explanation.get("objective") == "T_s" else "jerk"
     if rows:
@@ -279,7 +311,7 @@ def plot_sensitivities(explanation: dict, path, *, title: str = "") -> Path:
         ax.axvline(0.0, color="0.3", lw=0.8)
         ax.legend(fontsize=8)
     else:
-        ax.text(0.5, 0.5, "no limit binds", ha="center", va="center", transform=ax.transAxes)
+        ax.text(0.5, 0.5, "no limit has a value", ha="center", va="center", transform=ax.transAxes)
         ax.set_yticks([])
     ax.set_xlabel(f"change of the {'shortest time' if unit == 's' else 'jerk objective'} for +1 % of the limit "
                   f"[{unit}]")

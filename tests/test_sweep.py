@@ -179,7 +179,7 @@ def test_a_folder_resumes_only_with_its_device_count(tmp_path):
     sweep.prepare_folder(tmp_path / "s", cfg)
     (tmp_path / "s" / "config.json").write_text('{"identity": ' + __import__("json").dumps(cfg.identity()) + "}")
     other, _ = sweep.make_config(pop=(8,), iters=(3,), seeds=1, reference="pilot", devices=2)
-    with pytest.raises(sweep.ConfigError, match="devices: folder has 1, command gives 2"):
+    with pytest.raises(sweep.ConfigError, match=r"made on 1 CPU device\(s\), this command runs them on 2"):
         sweep.prepare_folder(tmp_path / "s", other)
 
 

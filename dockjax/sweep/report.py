@@ -294,12 +294,17 @@ def _figures(study: Study) -> list[Path]:
         if len(xs) * len(ys) != len(members):  # sampled, not a grid
             continue
         M = np.full((len(ys), len(xs)), np.nan)
+        tied = np.zeros(M.shape, bool)
+        best_cell = None
         for i in members:
             s = cfg.settings[i]
-            M[ys.index(s.value(names[0])), xs.index(s.value(names[1]))] = summary.rows[i]["HV_median"]
+            cell = (ys.index(s.value(names[0])), xs.index(s.value(names[1])))
+            M[cell] = summary.rows[i]["HV_median"]
+            tied[cell] = summary.rows[i]["tied_with_best"]
+            best_cell = cell if summary.rows[i]["status"] == "best" else best_cell
         sym = [symbol(algorithm, n) for n in names]
         written.append(plots.plot_heatmap(M, ys, xs, out / f"heatmap_hv_{algorithm}_pop{pop}_it{iters}.png",
-                                          xlabel=sym[1], ylabel=sym[0],
+                                          xlabel=sym[1], ylabel=sym[0], tied=tied, best=best_cell,
                                           title=f"{algorithm}: median HV, pop {pop}, {iters} iterations"))
     # HV against population size, one line per (algorithm, iterations, hyper-parameters)
     if len({s.pop for s in cfg.settings}) > 1:

@@ -42,6 +42,11 @@ def _diff(a: dict, b: dict) -> list[str]:
             only_y = [label(d) for d in y if d not in x][:2]
             out.append(f"settings: folder has {len(x)} (e.g. {only_x or 'the same ones in another order'}), "
                        f"command gives {len(y)} (e.g. {only_y or 'the same ones in another order'})")
+        elif k == "devices":
+            def what(n):
+                return f"{n} CPU device(s)" if n is not None else "Dask workers (--backend dask)"
+            out.append(f"devices: the folder's runs were made on {what(x)}, this command runs them on {what(y)} "
+                       "(the numbers depend on it)")
         else:
             out.append(f"{k}: folder has {x!r}, command gives {y!r}")
     return out
@@ -191,6 +196,12 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
                 if done:
                     log(f"round {r}: resuming, {len(done)} of {len(plan)} chunks already done")
                 bar.update(sum(c.n_real for c in done))
+
+                def say(message: str) -> None:  # a line of its own, not glued to the progress bar
+                    bar.clear()
+                    log(message)
+                    bar.refresh()
+
                 for spec, res in be.map(run_chunk, todo, reference):
                     atomic_savez(chunks_dir / spec.name, res)
                     computed += 1
@@ -209,7 +220,7 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
                     break
                 before = int(alive.sum())
                 alive = eliminate(scores_table(out, cfg), alive, cfg.race["alpha"], cfg.race["min_seeds"])
-                log(f"round {r}: seeds {seeds.start}..{seeds.stop - 1}, {before} settings raced, "
+                say(f"round {r}: seeds {seeds.start}..{seeds.stop - 1}, {before} settings raced, "
                     f"{int(alive.sum())} left")
                 r += 1
                 if alive.sum() <= 1 or seeds_done >= cfg.seeds:
