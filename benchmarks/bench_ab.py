@@ -2,6 +2,7 @@
 
     python benchmarks/bench_ab.py --base HEAD~1 [--presets paper wide] [--sizes 150 10000]
                                   [--repeats 15] [--devices N]
+    python benchmarks/bench_ab.py --base HEAD --sizes 16 --repeats 1  # quick
 
 The base revision's ``dockjax`` package is exported with ``git archive`` into a temporary
 folder and imported as ``dockjax_base`` (the package uses relative imports only), so both
@@ -9,12 +10,15 @@ versions score the same candidates in the same process, interleaved call by call
 A, B, …): a spell of load on this shared machine slows both alike. Prints, per preset,
 size and screen setting, the median time of each version, the ratio (this checkout over
 the base; below 1 is faster) with the 25–75 % range of the per-pair ratios, and whether
-the two versions' F and G are bit-identical.
+the two versions' F and G are bit-identical. The base package is removed from
+``sys.path`` and ``sys.modules`` when the comparison ends, so ``main`` can run again in the
+same process.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import subprocess
 import sys
@@ -30,15 +34,23 @@ ROOT = Path(__file__).resolve().parents[1]
 PRESETS = {"paper": {}, "wide": dict(interval_bounds=(0.5, 10.0))}
 
 
-def import_base(rev: str, where: Path):
-    """The ``dockjax`` package of git revision ``rev``, imported as ``dockjax_base``."""
+@contextlib.contextmanager
+def base_package(rev: str, where: Path):
+    """The ``dockjax`` package of git revision ``rev``, exported into ``where`` and imported
+    as ``dockjax_base`` for the duration of the block (then removed from ``sys.path`` and
+    ``sys.modules``)."""
     data = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev, "dockjax"],
                           check=True, capture_output=True).stdout
     with tarfile.open(fileobj=BytesIO(data)) as tar:
         tar.extractall(where, filter="data")
     (where / "dockjax").rename(where / "dockjax_base")
     sys.path.insert(0, str(where))
-    return importlib.import_module("dockjax_base")
+    try:
+        yield importlib.import_module("dockjax_base")
+    finally:
+        sys.path.remove(str(where))
+        for name in [m for m in sys.modules if m == "dockjax_base" or m.startswith("dockjax_base.")]:
+            del sys.modules[name]
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -59,9 +71,9 @@ def main(argv: list[str] | None = None) -> None:
         ap.error(str(exc))
     import dockjax
 
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
         try:
-            base = import_base(args.base, Path(tmp))
+            base = stack.enter_context(base_package(args.base, Path(tmp)))
         except subprocess.CalledProcessError as exc:
             ap.error(f"--base {args.base!r}: git archive failed: {exc.stderr.decode().strip()}")
         print(f"this checkout against {args.base}; {devices} CPU device(s); medians of {args.repeats} "

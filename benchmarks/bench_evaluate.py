@@ -1,6 +1,8 @@
 """Evaluations per second of ``DockingProblem.evaluate`` beside a per-candidate SciPy loop.
 
-    python benchmarks/bench_evaluate.py [--sizes 150 10000 100000] [--repeats 5] [--devices N]
+    python benchmarks/bench_evaluate.py [--sizes 150 10000 100000] [--repeats 5] [--scipy-candidates 40]
+                                        [--devices N]
+    python benchmarks/bench_evaluate.py --sizes 16 --repeats 1 --scipy-candidates 4  # quick
 
 The peer is what a user would write without dockjax: for each candidate, a
 ``scipy.interpolate.BSpline`` converted to ``PPoly``; T and the jerk objective by

@@ -1,33 +1,42 @@
 """Plans on the default move beside ruckig and toppra, and warm replanning.
 
-    python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--figure docs/figures/plan_peers.png]
+    python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--jerk-limits 25] [--n-front 8] [--peer-rate 10000]
+                                    [--figure docs/plan_peers.png] [--best-known 40 20 600]
+    python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1000  # quick
 
 The default start and goal with paper Table 2 limits, knot intervals in [0.5, 10] s (the
 ``wide`` preset, where time is limited by the joints rather than by the box). Rows:
 
 * dockjax, shortest time: :func:`dockjax.plan.plan` with weights (1, 0) (SQP on the spline
-  family), and the compromise plan with weights (1, 1);
+  family), and the compromise plan with weights (1, 1), chosen among the least-jerk plans at
+  ``--n-front`` time caps (``n_front``, also the planner's below);
 * ruckig (time-optimal, jerk-limited, per joint, time-synchronised), in joint space from the
   start's joints to the goal's, with a jerk limit of 1e6 (practically unlimited): the
   shortest time; and at dockjax's compromise T (``minimum_duration``), the least jerk
-  objective over jerk limits from 1 to 1e6 (log grid);
+  objective over ``--jerk-limits`` jerk limits from 1 to 1e6 (log grid);
 * toppra (time-optimal path parametrisation, velocity and acceleration limits) along the
   straight pose line mapped to the joints (201 waypoints, a cubic spline through them; the
   timed call builds the spline and solves).
 
-For each: T, the jerk objective of Eq. 25 (sampled at 10 kHz for the peers: the mean square
-of each joint's third derivative by finite differences of the sampled acceleration), the
-largest ratio of |velocity| and |acceleration| to its limit (sampled), and the median time
-per call (warm). Then a :class:`dockjax.plan.Planner` replans ``--replans`` random start and
+For each: T, the jerk objective of Eq. 25 (sampled at ``--peer-rate`` Hz, default 10 kHz, for
+the peers: the mean square of each joint's third derivative by finite differences of the
+sampled acceleration), the largest ratio of |velocity| and |acceleration| to its limit
+(sampled for the peers, the kernel's exact columns for dockjax), and the median time per
+call (warm). Then a :class:`dockjax.plan.Planner` replans ``--replans`` random start and
 goal poses (the defaults ± 5 mm, ± 0.1°, ± 1° roll): median and largest time per call, and
 the largest gap of its jerk to the least jerk found at the same T from the straight line and
-from the planner's own answer (:func:`dockjax.solve.least_jerk`). The front figure shows the
-best-known front with every peer's point.
+from the planner's own answer (:func:`dockjax.solve.least_jerk`). The front figure
+(``--figure PATH``; ``--figure`` alone: ``plan_peers.png`` in a new temporary folder) shows
+the best-known front (``--best-known``: its time caps, SQP anchors and refinement steps per
+cap) with every peer's point. A peer that is not installed (ruckig and toppra come with the
+``bench`` extra) is skipped with a line saying so.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import tempfile
 import time
 from pathlib import Path
 
@@ -62,6 +71,16 @@ def _sampled_scores(t, q, v, a, limits):
         float(np.max(np.abs(a) / limits[:, 2]))
 
 
+def _peer(name: str, skipped: list[str]):
+    """The peer's module, or None with the reason appended to ``skipped`` when it is not
+    importable."""
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        skipped.append(f"{name} skipped: it is not importable ({exc}); pip install 'dockjax[bench]'")
+        return None
+
+
 def _ruckig(q0, q1, limits, jerk_limit, duration=None):
     import ruckig
 
@@ -79,8 +98,8 @@ def _ruckig(q0, q1, limits, jerk_limit, duration=None):
     return traj
 
 
-def _ruckig_samples(traj):
-    t = np.arange(0.0, traj.duration, 1.0 / RATE)
+def _ruckig_samples(traj, rate):
+    t = np.arange(0.0, traj.duration, 1.0 / rate)
     t = np.append(t, traj.duration)
     pva = [traj.at_time(float(s)) for s in t]
     q, v, a = (np.array([p[k] for p in pva]) for k in range(3))
@@ -106,8 +125,8 @@ def _toppra(waypoints, limits):
     return algo.TOPPRA(cons, path, parametrizer="ParametrizeConstAccel").compute_trajectory()
 
 
-def _toppra_samples(traj):
-    t = np.append(np.arange(0.0, traj.duration, 1.0 / RATE), traj.duration)
+def _toppra_samples(traj, rate):
+    t = np.append(np.arange(0.0, traj.duration, 1.0 / rate), traj.duration)
     return t, traj(t), traj(t, 1), traj(t, 2)
 
 
@@ -115,10 +134,20 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--replans", type=int, default=20)
-    ap.add_argument("--figure", type=Path, default=None, help="write the front with the peers' points here")
+    ap.add_argument("--n-front", type=int, default=config.PLAN_FRONT,
+                    help="time caps of the least-jerk front a plan chooses from (plan's and Planner's n_front)")
+    ap.add_argument("--peer-rate", type=float, default=RATE, help="sampling rate of the peers' scores (Hz)")
+    ap.add_argument("--jerk-limits", type=int, default=25,
+                    help="ruckig's jerk limits tried at the compromise T (log grid from 1 to 1e6)")
+    ap.add_argument("--figure", nargs="?", default=None, const="",
+                    help="write the front with the peers' points here (alone: into a new temporary folder)")
+    ap.add_argument("--best-known", type=int, nargs=3, default=[40, 20, 600], metavar=("POINTS", "ANCHORS", "STEPS"),
+                    help="the figure's best-known front: time caps, SQP anchors, refinement steps per cap")
     args = ap.parse_args(argv)
-    if args.repeats < 1 or args.replans < 1:
-        ap.error("--repeats and --replans must be >= 1")
+    if args.repeats < 1 or args.replans < 1 or args.jerk_limits < 1:
+        ap.error("--repeats, --replans and --jerk-limits must be >= 1")
+    if not args.peer_rate > 0:
+        ap.error(f"--peer-rate must be > 0, got {args.peer_rate}")
     problem = make_problem("wide")
     lim = np.asarray(problem.limits)
     q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))
@@ -126,42 +155,52 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
 
     def dockjax_row(label, weights):
-        plan(problem, weights=weights, check_sensitivities=False)  # compile
-        p, dt = _median_time(lambda: plan(problem, weights=weights, check_sensitivities=False), args.repeats)
-        g = p.problem.evaluate(p.x[None])[1][0].reshape(8, 3)
+        options = dict(weights=weights, n_front=args.n_front, check_sensitivities=False)
+        plan(problem, **options)  # compile
+        p, dt = _median_time(lambda: plan(problem, **options), args.repeats)
+        g = p.problem.evaluate(p.x[None], screen=False)[1][0].reshape(8, 3)  # every column exact
         rows.append((label, p.T, p.jerk, float(np.max(g[:, 1] + 1)), float(np.max(g[:, 2] + 1)), dt))
         return p
 
     dockjax_row("dockjax, shortest time (SQP)", (1.0, 0.0))
     p_comp = dockjax_row("dockjax, compromise (1, 1)", (1.0, 1.0))
-    traj, dt = _median_time(lambda: _ruckig(q0, q1, lim, 1e6), args.repeats)
-    rows.append(("ruckig, shortest time (jerk limit 1e6)", *_sampled_scores(*_ruckig_samples(traj), lim), dt))
-    best = None
-    for jl in np.geomspace(1.0, 1e6, 25):
-        traj = _ruckig(q0, q1, lim, jl, duration=p_comp.T)
-        if abs(traj.duration - p_comp.T) > 1e-6 * p_comp.T:
-            continue
-        sc = _sampled_scores(*_ruckig_samples(traj), lim)
-        if best is None or sc[1] < best[0][1]:
-            best = (sc, jl)
-    if best is not None:
-        _, dt = _median_time(lambda: _ruckig(q0, q1, lim, best[1], duration=p_comp.T), args.repeats)
-        rows.append((f"ruckig at the compromise T (jerk limit {best[1]:.3g})", *best[0], dt))
-    waypoints = _straight_joint_path(problem)
-    _toppra(waypoints, lim)
-    out, dt = _median_time(lambda: _toppra(waypoints, lim), args.repeats)
-    rows.append(("toppra, straight joint path", *_sampled_scores(*_toppra_samples(out), lim), dt))
+    notes: list[str] = []
+    rate = args.peer_rate
+    if _peer("ruckig", notes) is not None:
+        traj, dt = _median_time(lambda: _ruckig(q0, q1, lim, 1e6), args.repeats)
+        rows.append(("ruckig, shortest time (jerk limit 1e6)", *_sampled_scores(*_ruckig_samples(traj, rate), lim), dt))
+        best = None
+        for jl in np.geomspace(1.0, 1e6, args.jerk_limits):
+            traj = _ruckig(q0, q1, lim, jl, duration=p_comp.T)
+            if abs(traj.duration - p_comp.T) > 1e-6 * p_comp.T:
+                continue
+            sc = _sampled_scores(*_ruckig_samples(traj, rate), lim)
+            if best is None or sc[1] < best[0][1]:
+                best = (sc, jl)
+        if best is not None:
+            _, dt = _median_time(lambda: _ruckig(q0, q1, lim, best[1], duration=p_comp.T), args.repeats)
+            rows.append((f"ruckig at the compromise T (jerk limit {best[1]:.3g})", *best[0], dt))
+        else:
+            notes.append(f"ruckig at the compromise T: none of the {args.jerk_limits} jerk limits reaches "
+                         f"T = {p_comp.T:.3f} s exactly")
+    if _peer("toppra", notes) is not None:
+        waypoints = _straight_joint_path(problem)
+        _toppra(waypoints, lim)
+        out, dt = _median_time(lambda: _toppra(waypoints, lim), args.repeats)
+        rows.append(("toppra, straight joint path", *_sampled_scores(*_toppra_samples(out, rate), lim), dt))
 
     print(f"default move, Table 2 limits, intervals in {problem.interval_bounds} s; median of {args.repeats} warm "
-          f"calls\n")
+          f"calls; peers sampled at {rate:g} Hz\n")
     print("| method | T [s] | jerk (Eq. 25) | max v/limit | max a/limit | time per call |")
     print("|---|---:|---:|---:|---:|---:|")
     for label, T, J, rv, ra, dt in rows:
         print(f"| {label} | {T:.3f} | {J:.4g} | {rv:.4f} | {ra:.4f} | {dt * 1e3:.3g} ms |")
+    for note in notes:
+        print(f"\n{note}")
     print(f"\nlateral joint floor (30 mm at 2.5 mm/s, 100 mm/s²): {30 / 2.5 + 2.5 / 100:.3f} s")
 
     # warm replanning
-    planner = Planner(DockingProblem())
+    planner = Planner(DockingProblem(), n_front=args.n_front)
     planner.plan()
     rng = np.random.default_rng(0)
     half = np.array([5, 5, 5, 0.1, 0.1, 1.0])
@@ -178,12 +217,14 @@ def main(argv: list[str] | None = None) -> None:
           f"median {np.median(times) * 1e3:.1f} ms, largest {np.max(times) * 1e3:.1f} ms per plan; "
           f"jerk above the least jerk at its T by at most {100 * max(gaps):.2g} %")
 
-    if args.figure is not None:
-        front = best_known_front(problem, n_points=40)
+    if args.figure is not None:  # --figure alone: plan_peers.png in a new temporary folder
+        figure = Path(args.figure) if args.figure else Path(tempfile.mkdtemp(prefix="bench_plan-")) / "plan_peers.png"
+        n_points, n_exact, steps = args.best_known
+        front = best_known_front(problem, n_points=n_points, n_exact=n_exact, steps=steps)
         peers = {label: np.array([[T, J]]) for label, T, J, *_ in rows}
-        plots.plot_fronts(peers, args.figure, reference=front.F, reference_label="dockjax best-known front",
+        plots.plot_fronts(peers, figure, reference=front.F, reference_label="dockjax best-known front",
                           title="default move, Table 2 limits: dockjax's front and the peers")
-        print(f"wrote {args.figure}")
+        print(f"wrote {figure}")
 
 
 if __name__ == "__main__":

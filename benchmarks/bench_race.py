@@ -4,7 +4,7 @@ one of the settings the full grid cannot tell from the best.
     python benchmarks/bench_race.py [--rho 0.1 0.3 0.5 0.7 0.9] [--alpha-max 0.1 1 3 10 30]
                                     [--seeds 31] [--pop 150] [--iters 100] [--min-seeds 5] [--chunk 40]
                                     [--reference best-known] [--devices N]
-    python benchmarks/bench_race.py --seeds 5 --pop 8 --iters 3 --min-seeds 2 --chunk 2 --reference pilot  # quick
+    python benchmarks/bench_race.py --seeds 3 --pop 8 --iters 3 --min-seeds 2 --chunk 2 --reference pilot  # quick
 
 Runs the full grid (every ρ × α_max setting of IMOCS on every seed) and the race over the
 same grid and seed budget, in the same process, against the same reference front (the

@@ -1,12 +1,17 @@
 """Gradient refinement and the best-known front, in one process.
 
-    python benchmarks/bench_refine.py [--steps 200] [--repeats 3]
+    python benchmarks/bench_refine.py [--steps 200] [--repeats 3] [--pop 150] [--iters 100]
+                                      [--best-known 150 20 600]
+    python benchmarks/bench_refine.py --steps 20 --repeats 1 --pop 8 --iters 3 --best-known 4 2 20  # quick
 
-1. The best-known front of the default problem (``dockjax.config.BEST_KNOWN`` settings),
-   wall time with compile included (it runs first, on a cold process).
-2. Refining the final population (150 points) of one IMOCS run (population 150,
-   100 iterations): median wall time over ``--repeats`` after compile (same compiled shape
-   as step 1), and the hypervolume of the front before and after.
+1. The best-known front of the default problem (``--best-known`` its time caps, SQP
+   anchors and refinement steps; default ``dockjax.config.BEST_KNOWN``), wall time with
+   compile included (it runs first, on a cold process).
+2. Refining the final population (``--pop`` points) of one IMOCS run (population
+   ``--pop``, ``--iters`` iterations): median wall time over ``--repeats`` after compile
+   (same compiled shape as step 1 when the population and the front's time caps fall in
+   one bucket of rows, as at the defaults), and the hypervolume of the front before and
+   after.
 3. The hypervolume of the best-known front beside them (reference point of
    ``dockjax.best_known.reference_point``).
 """
@@ -30,16 +35,25 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=200, help="refinement steps (default 200, refine's default)")
     ap.add_argument("--repeats", type=int, default=3, help="timed repeats after compile")
+    ap.add_argument("--pop", type=int, default=150, help="IMOCS population (the points refined)")
+    ap.add_argument("--iters", type=int, default=100, help="IMOCS iterations")
+    ap.add_argument("--best-known", type=int, nargs=3, metavar=("POINTS", "ANCHORS", "STEPS"),
+                    default=[BEST_KNOWN["n_points"], BEST_KNOWN["n_exact"], BEST_KNOWN["steps"]],
+                    help="the best-known front's time caps, SQP anchors and refinement steps per cap "
+                         "(default dockjax.config.BEST_KNOWN)")
     a = ap.parse_args(argv)
+    if a.repeats < 1:
+        ap.error(f"--repeats must be >= 1, got {a.repeats}")
     problem = make_problem("paper")
     ref = reference_point(problem)
+    settings = dict(zip(("n_points", "n_exact", "steps"), a.best_known))
 
     t0 = time.perf_counter()
-    front = best_known_cached(problem, None, log=lambda m: None)
+    front = best_known_cached(problem, None, log=lambda m: None, **settings)
     t_best = time.perf_counter() - t0
-    print(f"best-known front ({BEST_KNOWN}): {len(front.F)} points, {t_best:.1f} s wall, compile included")
+    print(f"best-known front ({settings}): {len(front.F)} points, {t_best:.1f} s wall, compile included")
 
-    r = optimize("imocs", problem, seeds=[0], pop_size=150, n_iter=100)
+    r = optimize("imocs", problem, seeds=[0], pop_size=a.pop, n_iter=a.iters)
     X = r.X[0]
     times = []
     for _ in range(a.repeats):

@@ -1,6 +1,7 @@
 """One IMOCS run, 100 vmapped runs, and pymoo's NSGA-II on the same kernel.
 
     python benchmarks/bench_run.py [--pop 150] [--iters 100] [--runs 100] [--devices N] [--pymoo-runs 5]
+    python benchmarks/bench_run.py --pop 8 --iters 3 --runs 2 --pymoo-runs 1  # quick
 
 Default docking problem, population 150, 100 iterations (15,150 evaluations per run).
 Prints compile and run time of one IMOCS run and of ``--runs`` runs vmapped in one call,
@@ -82,10 +83,14 @@ def main(argv: list[str] | None = None) -> None:
             times.append(time.perf_counter() - t0)
     eval_s = float(np.median(times))
 
-    if args.pymoo_runs:
-        from pymoo.algorithms.moo.nsga2 import NSGA2
-        from pymoo.optimize import minimize
-
+    n_pymoo, why_not = args.pymoo_runs, "--pymoo-runs 0"
+    if n_pymoo:
+        try:
+            from pymoo.algorithms.moo.nsga2 import NSGA2
+            from pymoo.optimize import minimize
+        except ImportError as exc:
+            n_pymoo, why_not = 0, f"pymoo is not importable ({exc}); pip install 'dockjax[bench]'"
+    if n_pymoo:
         from dockjax.interop import as_pymoo_problem
 
         pp = as_pymoo_problem(problem)
@@ -98,13 +103,13 @@ def main(argv: list[str] | None = None) -> None:
 
     # one run: rounds of (IMOCS on the default devices, on one device, pymoo), interleaved
     # so that the host's slow and fast spells fall on all of them; medians
-    rounds = max(args.pymoo_runs, 5)
+    rounds = max(n_pymoo, 5)
     ones, solos, pys = [], [], []
     for r in range(rounds):
         ones.append(run([r + 1]).seconds)
         if devices > 1:
             solos.append(run([r + 1], devices=1).seconds)
-        if args.pymoo_runs and r < args.pymoo_runs:
+        if r < n_pymoo:
             pys.append(pymoo_run(r))
     one = float(np.median(ones))
     solo = float(np.median(solos)) if solos else one
@@ -117,7 +122,7 @@ def main(argv: list[str] | None = None) -> None:
           f"one device): {eval_s:.3f} s of the {solo:.3f} s one-device run ({100 * eval_s / solo:.0f} %); "
           f"the rest is ranking, survival and variation")
     if not pys:
-        print("pymoo skipped (--pymoo-runs 0)")
+        print(f"pymoo NSGA-II skipped: {why_not}")
         return
     py = float(np.median(pys))
     pairs = np.array(pys) / np.array(ones[: len(pys)])

@@ -59,18 +59,9 @@ class FrontResult:
                 f"{self.F[-1, 1]:.4g}..{self.F[0, 1]:.4g}; {self.seconds:.1f} s)")
 
 
-def best_known_front(
-    problem: DockingProblem,
-    *,
-    n_points: int = 150,
-    n_exact: int = 20,
-    line: bool = False,
-    steps: int = 600,
-    learning_rate: float = 0.05,
-    penalty: float = 10.0,
-    margin: float = 1e-4,
-    rows: int | None = None,
-) -> FrontResult:
+def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: int = 20, line: bool = False,
+                     steps: int = 600, learning_rate: float = 0.05, penalty: float = 10.0, margin: float = 1e-4,
+                     rows: int | None = None) -> FrontResult:
     """An ε-constraint sweep of T from the shortest feasible time to ``6 h_hi``.
 
     1. The shortest time, and the least jerk at ``n_exact`` caps from it to ``6 h_hi``

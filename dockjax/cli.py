@@ -20,7 +20,10 @@ import errno
 import io
 import os
 import re
+import shutil
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,7 +34,7 @@ import tyro
 
 from . import checks, config
 from .algorithms import ALGORITHMS
-from .io import DamagedFileError
+from .io import DamagedFileError, FolderLock, make_folders
 from .runtime import check_memory, claim_devices, enable_compilation_cache, usable_cores, use_cpu_devices
 from .track import AxisModel
 
@@ -151,6 +154,16 @@ class SweepArgs:
     choices can diverge from such a difference, so a folder resumes only with the count it was started with."""
 
 
+def _study_devices(args: SweepArgs, here: int) -> int | None:
+    """The CPU devices a study's chunks run on, part of its identity (the numbers depend on
+    it): this process's for the local backend and a Dask cluster of threads started here,
+    one for a cluster of processes started here (each worker a fresh process with JAX's
+    one CPU device), unknown (None) for a scheduler's workers elsewhere."""
+    if args.backend == "local" or (args.scheduler is None and not args.dask_processes):
+        return here
+    return 1 if args.scheduler is None else None
+
+
 def _param_specs(args: SweepArgs):
     """--param, plus IMOCS's --rho/--alpha-max grids unless --param names those fields."""
     from .sweep import parse_param
@@ -174,10 +187,12 @@ def _param_specs(args: SweepArgs):
 def sweep(args: SweepArgs) -> int:
     """Validate (exit 2 before any compilation, without leaving a folder behind), run the
     missing chunks, report."""
-    from .sweep import ConfigError, make_config, prepare_folder
+    from .sweep import ConfigError, claim_folder, make_config
 
     errors = [f"{name} must be >= 1, got {v}" for name, v in (("--workers", args.workers), ("--top", args.top))
               if v < 1]
+    if args.workers > 4 * usable_cores():
+        errors.append(f"--workers {args.workers} is more than four per usable core ({usable_cores()})")
     if args.scheduler is not None and args.backend != "dask":
         errors.append("--scheduler needs --backend dask")
     if args.backend == "dask":
@@ -194,7 +209,6 @@ def sweep(args: SweepArgs) -> int:
         n_devices = claim_devices(args.devices)  # before any JAX computation
     except ValueError as exc:
         return _error(str(exc))
-    created: list[Path] = []
     try:
         try:
             specs = _param_specs(args)
@@ -204,47 +218,58 @@ def sweep(args: SweepArgs) -> int:
                                      refine_steps=args.refine_steps, chunk=args.chunk, reference=args.reference,
                                      reference_front=args.reference_front, race=args.race,
                                      race_min_seeds=args.race_min_seeds, race_alpha=args.race_alpha,
-                                     devices=None if args.backend == "dask" else n_devices)
+                                     devices=_study_devices(args, n_devices))
         except ValueError as exc:
             raise ConfigError("; ".join([str(exc), *errors])) from None
         if errors:
             raise ConfigError("; ".join(errors))
-        created = prepare_folder(args.out, cfg)
+        claim = claim_folder(args.out, cfg, command=_command("sweep"))
     except ConfigError as exc:
         return _error(str(exc))
     if "imocs" not in args.algorithm and (args.rho != SweepArgs.rho or args.alpha_max != SweepArgs.alpha_max):
         print("note: --rho and --alpha-max apply to IMOCS only")
     enable_compilation_cache()
     t0 = time.perf_counter()
-    code = _run_study(cfg, args.out, created, front=front, backend=args.backend, scheduler=args.scheduler,
+    code = _run_study(cfg, claim, front=front, backend=args.backend, scheduler=args.scheduler,
                       workers=args.workers, dask_processes=args.dask_processes, progress=args.progress, top=args.top)
     if code == 0:
         print(f"total {time.perf_counter() - t0:.1f} s")
     return code
 
 
-def _run_study(cfg, out: Path, created: list[Path], *, top: int, extensions=(), **options) -> int:
-    """Run a prepared study folder's missing chunks (:func:`dockjax.sweep.run_sweep`) and
-    report it; the exit code (0, 1 when the work cannot complete, 130 interrupted)."""
-    from .sweep import ConfigError, remove_created, report, run_sweep
+def _command(name: str) -> str:
+    """This process's command line, as the holder of a folder is named to another."""
+    return " ".join(["dockjax", name, *(a for a in sys.argv[1:] if a != name)])
 
+
+def _run_study(cfg, claim, *, top: int, extensions=(), **options) -> int:
+    """Run the missing chunks of a study folder this process holds (:func:`dockjax.sweep.
+    claim_folder`, :func:`dockjax.sweep.run_sweep`) and report it, then release the folder;
+    the exit code (0, 1 when the work cannot complete, 130 interrupted)."""
+    from .sweep import ConfigError, report, run_sweep
+
+    out = claim.out
+    finished = lambda: any((out / "chunks").glob("round-*.npz"))  # noqa: E731
     try:
         run_sweep(cfg, out, **options)
+        report(out, top=top, extensions=extensions)
+        return 0
     except ConfigError as exc:  # e.g. an unreachable scheduler; nothing was computed
-        remove_created(created)
+        if not finished():
+            claim.abandon()
         return _error(str(exc))
     except KeyboardInterrupt:
-        done = list((Path(out) / "chunks").glob("round-*.npz"))
+        done = list((out / "chunks").glob("round-*.npz"))
         print("\ninterrupted: " + (f"{len(done)} finished chunks are saved in {out / 'chunks'}; re-run the same "
                                    "command to resume" if done else "no chunk had finished"), file=sys.stderr)
         return 130
     except RuntimeError as exc:  # e.g. the reference holds no feasible trajectory
-        if created and not any((Path(out) / "chunks").glob("round-*.npz")):
-            remove_created(created)
+        if not finished():
+            claim.abandon()
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    report(out, top=top, extensions=extensions)
-    return 0
+    finally:
+        claim.release()
 
 
 # ------------------------------------------------------------------------------ compare
@@ -290,7 +315,7 @@ class CompareArgs:
 
 def compare(args: CompareArgs) -> int:
     """Validate, then run and report each preset's study."""
-    from .sweep import ConfigError, paper_config, paper_tables, prepare_folder
+    from .sweep import ConfigError, claim_folder, paper_config, paper_tables
 
     errors = [f"--{name} must be >= 1, got {v}" for name, v in (("top", args.top),) if v < 1]
     if not args.presets:
@@ -315,23 +340,25 @@ def compare(args: CompareArgs) -> int:
     if errors:
         return _error("; ".join(dict.fromkeys(errors)))
     n_devices = claim_devices(args.devices)  # before any JAX computation
-    created: list[Path] = []
+    claims = []
     try:
         for preset, cfg in configs.items():
             configs[preset] = cfg = dataclasses.replace(cfg, devices=n_devices)
-            created += prepare_folder(args.out / preset, cfg)
+            claims.append(claim_folder(args.out / preset, cfg, command=_command("compare")))
     except ConfigError as exc:
-        from .sweep import remove_created
-
-        remove_created(created)
+        for claim in claims:
+            claim.abandon()
+        if args.out.is_dir() and not any(args.out.iterdir()):
+            args.out.rmdir()  # made for the presets' folders, now empty
         return _error(str(exc))
     enable_compilation_cache()
     t0 = time.perf_counter()
-    for preset, cfg in configs.items():
+    for i, (preset, cfg) in enumerate(configs.items()):
         print(f"[{preset}] the paper's comparison: {', '.join(s.name for s in cfg.settings)}; {cfg.seeds} seeds")
-        code = _run_study(cfg, args.out / preset, [p for p in created if p.is_relative_to(args.out / preset)],
-                          top=args.top, extensions=[paper_tables], progress=args.progress)
+        code = _run_study(cfg, claims[i], top=args.top, extensions=[paper_tables], progress=args.progress)
         if code:
+            for claim in claims[i + 1:]:
+                claim.release()
             return code
     print(f"wall time: {time.perf_counter() - t0:.1f} s")
     return 0
@@ -396,6 +423,24 @@ def _as_option(message: str, names: dict[str, str]) -> str:
     return f"{names[head]}{sep}{rest}" if head in names else message
 
 
+@contextlib.contextmanager
+def _holding(out: Path, name: str):
+    """A command's output folder for its whole run: created if missing and held by this
+    process alone (:class:`dockjax.io.FolderLock`; another process holding it is refused
+    with exit 2, naming it). Yields a list; the caller appends the files it wrote. Folders
+    created here are removed again when nothing was written."""
+    created = make_folders(out)
+    lock = FolderLock(out, _command(name))
+    lock.acquire()
+    written: list[Path] = []
+    try:
+        yield written
+    finally:
+        if not written and created:
+            shutil.rmtree(created[0], ignore_errors=True)
+        lock.release(remove=not written and lock.created_file and not created)
+
+
 def _make_plan(problem, weights, rate: float, **options):
     """:func:`dockjax.plan.plan` with the command line's failure: ``(plan, 0)``, or
     ``(None, 1)`` after one line naming the limit no trajectory meets."""
@@ -413,7 +458,7 @@ def _make_plan(problem, weights, rate: float, **options):
 def plan(args: PlanArgs) -> int:
     """Validate, plan, certify, write."""
     from . import select
-    from .plan import check_options, explain_text, load_limits, write_plan
+    from .plan import check_move, check_options, explain_text, load_limits, write_plan
     from .problem import DockingProblem
 
     weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
@@ -431,14 +476,16 @@ def plan(args: PlanArgs) -> int:
         extra = load_limits(args.limits) if args.limits is not None else {}
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
                                  interval_bounds=args.interval_bounds, **extra)
+        check_move(problem)
     except ValueError as exc:
         return _error(_as_option(str(exc), PLAN_OPTIONS))
-    p, code = _make_plan(problem, weights, args.rate, method=args.method, pop_size=args.pop, n_iter=args.iters,
-                         seed=args.seed, refine_steps=args.refine_steps, n_front=args.n_front,
-                         check_sensitivities=args.explain)
-    if p is None:
-        return code
-    files = write_plan(p, args.out)
+    with _holding(args.out, "plan") as files:
+        p, code = _make_plan(problem, weights, args.rate, method=args.method, pop_size=args.pop, n_iter=args.iters,
+                             seed=args.seed, refine_steps=args.refine_steps, n_front=args.n_front,
+                             check_sensitivities=args.explain)
+        if p is None:
+            return code
+        files += write_plan(p, args.out)
     print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g} (shortest feasible T = {p.settings['shortest_T_s']:.3f} s); "
           f"every limit certified at {args.rate:g} Hz and by the kernel's rigorous per-span maxima")
     if args.explain:
@@ -561,11 +608,12 @@ def track(args: TrackArgs) -> int:
         problem = DockingProblem(start=start, goal=goal, interval_bounds=args.interval_bounds)
     except ValueError as exc:
         return _error(_as_option(str(exc), TRACK_OPTIONS))
-    p, code = _make_plan(problem, args.weights, args.rate, check_sensitivities=False)
-    if p is None:
-        return code
-    result = servo.track(p.samples, args.model, args.rate)
-    files = servo.write_tracking(result, p, args.out, move=args.move, largest_pole=largest)
+    with _holding(args.out, "track") as files:
+        p, code = _make_plan(problem, args.weights, args.rate, check_sensitivities=False)
+        if p is None:
+            return code
+        result = servo.track(p.samples, args.model, args.rate)
+        files += servo.write_tracking(result, p, args.out, move=args.move, largest_pole=largest)
     print(f"planned T = {p.T:.3f} s; servo at {args.rate:g} Hz (largest closed-loop |z| = {largest:.4f})")
     print(f"{'joint':<8} {'max |position error|':>22} {'max |velocity error|':>22} {'measured velocity':>18}")
     for j in servo.moving_joints(p.samples):
@@ -585,10 +633,51 @@ COMMANDS = {"sweep": (SweepArgs, sweep), "compare": (CompareArgs, compare), "pla
 """Subcommand → (options, function)."""
 
 
+REPEATABLE = ("--param",)
+"""Options that may be given several times; their values are joined."""
+
+
+def _join_repeats(argv: Sequence[str]) -> list[str]:
+    """``argv`` with the values of every repeated :data:`REPEATABLE` option joined into its
+    first occurrence. Raises ValueError naming another option given twice (the parser
+    would keep only its last value), ``--x`` and ``--no-x`` counting as one option."""
+    argv = list(argv)
+    groups: list[list] = []  # [key or None, the option token, its values]
+    first: dict[str, list] = {}
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if not (token.startswith("--") and len(token) > 2):
+            groups.append([None, token, []])
+            i += 1
+            continue
+        name, eq, inline = token.partition("=")
+        j = i + 1
+        while not eq and j < len(argv) and not argv[j].startswith("--"):
+            j += 1
+        values = [inline] if eq else argv[i + 1:j]
+        key = "--" + name[5:] if name.startswith("--no-") else name
+        if key in first and key not in REPEATABLE:
+            raise ValueError(f"{key} is given twice (only one would count); give all its values once")
+        if key in first:
+            first[key][2].extend(values)
+        else:
+            first[key] = [key, name, values]
+            groups.append(first[key])
+        i = j
+    return [t for _, name, values in groups for t in (name, *values)]
+
+
 def parse(argv: Sequence[str]):
     """The options of ``dockjax ARGV`` (tyro), or an exit code: 0 after ``--help``, 2 after
-    one line ``error: …`` for anything tyro cannot parse (its framed message reduced to
-    the line that says what is wrong, and its suggestion)."""
+    one line ``error: …`` for anything that cannot be parsed — tyro's framed message
+    reduced to the line that says what is wrong, and its suggestion — or an option given
+    twice (:func:`_join_repeats`)."""
+    try:
+        argv = _join_repeats(argv)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     captured = io.StringIO()
     try:
         with contextlib.redirect_stderr(captured):
@@ -636,7 +725,7 @@ def describe_failure(exc: BaseException) -> tuple[int, str]:
         return 1, str(exc)
     solve = sys.modules.get(f"{__package__}.solve")  # a PlanError can only come from a loaded solver
     if solve is not None and isinstance(exc, solve.PlanError):
-        return 1, f"no plan: {exc}"
+        return 1, str(exc)
     if isinstance(exc, ValueError):
         return 2, str(exc)
     if isinstance(exc, MemoryError):
@@ -660,18 +749,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
+    interrupted: list[int] = []
+
+    def on_interrupt(signum, frame):  # remembered: an interrupt raised inside a garbage-collection
+        interrupted.append(signum)   # callback is swallowed by the interpreter
+        raise KeyboardInterrupt
+
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, on_interrupt) if main_thread else None
     try:
         args = parse(argv)
         if isinstance(args, int):
             return args
         run = next(fn for opts, fn in COMMANDS.values() if isinstance(args, opts))
-        return run(args)
+        code = run(args)
+        if interrupted and code == 0:
+            raise KeyboardInterrupt
+        return code
     except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 - one line per failure, see describe_failure
         if debug:
             raise
         code, message = describe_failure(exc)
         print(f"\n{message}" if code == 130 else f"error: {message}", file=sys.stderr)
         return code
+    finally:
+        if main_thread and previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 def exit_with(code: int) -> None:

@@ -115,3 +115,15 @@ SWEEP_SEEDS = 5
 SWEEP_ITERS = 50
 SWEEP_CHUNK = 40
 """Most runs per compiled call of a sweep."""
+
+# -- the bounds of a request ----------------------------------------------------------------
+MAX_COUNT = 2**31 - 1
+"""Largest count (iterations, seeds, population, budget, ...) a request may give: the
+optimisers count in 32-bit integers."""
+MAX_SETTINGS = 100_000
+"""Most settings one study may hold."""
+MAX_EVALUATIONS = 10**11
+"""Most candidate evaluations one study may ask for (about four days at the kernel's
+300,000 evaluations a second on two cores)."""
+EVALUATIONS_PER_SECOND = 300_000
+"""The kernel's throughput on two CPU cores, for the time estimates of refusals."""

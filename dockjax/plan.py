@@ -22,7 +22,7 @@ import numpy as np
 
 from . import checks, config, plots, select, solve
 from .algorithms import ALGORITHMS
-from .io import atomic_write_text, write_set
+from .io import atomic_write_text, check_input_file, write_set
 from .metrics import nondominated_points
 from .optimize import optimize
 from .problem import DockingProblem
@@ -31,8 +31,8 @@ from .solve import PlanError
 from .trajectory import Trajectory, bucket_durations
 from .version import __version__
 
-__all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "explain_text", "check_options", "load_limits",
-           "write_plan", "METHODS"]
+__all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "explain_text", "check_options", "check_move",
+           "load_limits", "write_plan", "METHODS"]
 
 
 @dataclass
@@ -82,14 +82,18 @@ class Plan:
         return out
 
 
+MAX_LIMITS_FILE = 2**20
+"""Largest limits file read (bytes)."""
+
+
 def load_limits(path: str | Path) -> dict:
     """Read limit overrides from a TOML or JSON file: keys ``travel``, ``velocity``,
     ``acceleration`` (4 or 8 numbers) and ``home`` (8 numbers). Unknown keys are refused."""
-    path = Path(path)
+    path = check_input_file(path, "limits file", MAX_LIMITS_FILE)
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ValueError(f"limits file {path} cannot be read: {exc.strerror or exc}") from None
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark is not part of the text
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"limits file {path} cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
     suffix = path.suffix.lower()
     parsers = {".toml": (("TOML", tomllib.loads),), ".json": (("JSON", json.loads),)}.get(
         suffix, (("JSON", json.loads), ("TOML", tomllib.loads)))
@@ -265,6 +269,14 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
     return out
 
 
+def check_move(problem: DockingProblem) -> None:
+    """ValueError when the start is the goal: there is nothing to plan (every trajectory of
+    the box that stays put is optimal, whatever its time)."""
+    if np.array_equal(np.asarray(problem.start), np.asarray(problem.goal)):
+        raise ValueError(f"start and goal are the same pose {np.asarray(problem.start).tolist()}: there is no move "
+                         "to plan")
+
+
 def check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front) -> tuple[np.ndarray, float]:
     """:func:`plan`'s options checked (ValueError naming the option) and resolved: the
     weights (2,) and the rate (Hz). Cheap: no JAX computation."""
@@ -302,6 +314,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     if not isinstance(problem, DockingProblem):
         raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
     w, rate = check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front)
+    check_move(problem)
     time_only = w[1] == 0
     shortest = _shortest(problem)
     if method == "direct":
@@ -389,6 +402,7 @@ class Planner:
         :class:`PlanError` when no trajectory is found."""
         w = select.check_weights(weights, 2)
         problem = self._problem_for(start, goal)
+        check_move(problem)
         self.warm()
         X = solve.map_to(problem, self.problem, self._template)
         _, G = problem.evaluate(X)

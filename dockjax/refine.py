@@ -247,16 +247,8 @@ def _polish_chunk(problem, X, cap, size, steps, learning_rate, penalty, margin):
     return tuple(np.asarray(a)[:n] for a in out)
 
 
-def refine(
-    problem: DockingProblem,
-    X,
-    *,
-    steps: int = 200,
-    learning_rate: float = 0.05,
-    penalty: float = 10.0,
-    margin: float = 1e-4,
-    rows: int | None = None,
-) -> RefineResult:
+def refine(problem: DockingProblem, X, *, steps: int = 200, learning_rate: float = 0.05, penalty: float = 10.0,
+           margin: float = 1e-4, rows: int | None = None) -> RefineResult:
     """Polish every row of X (n, n_var) (natural units) by projected Adam in the unit box:
     minimise jerk with ``T ≤ T_i`` and all 24 limits, see the module docstring.
 

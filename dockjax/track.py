@@ -486,4 +486,4 @@ def write_tracking(result: TrackResult, plan, out, *, move: str = "custom", larg
                                                f"{result.rate:g} Hz)"))
         return files
 
-    return write_set(out, write)
+    return write_set(out, write, owned=("tracking.json", "tracking.csv", "tracking.png"))

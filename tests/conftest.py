@@ -47,6 +47,12 @@ def pytest_configure(config):
     jax.devices()  # one CPU device per test process, whatever a command run in-process asks for
 
 
+def pytest_collection_modifyitems(config, items):
+    """The benchmarks' quick forms last: by then the other tests have compiled most of
+    their programs into the persistent cache."""
+    items.sort(key=lambda item: item.nodeid.startswith("tests/test_benchmarks.py"))
+
+
 @pytest.fixture(scope="session")
 def run_once(tmp_path_factory) -> Callable[[str, Callable[[pathlib.Path], Any]], Any]:
     """``run_once(name, make)``: ``make(folder)`` computed once per test run across the xdist
@@ -105,10 +111,10 @@ def _cli(argv: list[str]) -> tuple[int, str]:
 
 @pytest.fixture(scope="session")
 def paper_plan(run_once):
-    """``dockjax plan --rate 200`` (the paper's move, the compromise of Eq. 26), made once:
-    its folder."""
+    """``dockjax plan --rate 200 --n-front 3`` (the paper's move, the compromise of Eq. 26;
+    three time caps of the front to choose from), made once: its folder."""
     def make(folder):
-        code, _ = _cli(["plan", "--rate", "200", "--out", str(folder / "plan")])
+        code, _ = _cli(["plan", "--rate", "200", "--n-front", "3", "--out", str(folder / "plan")])
         assert code == 0
         return folder / "plan"
 
@@ -118,11 +124,12 @@ def paper_plan(run_once):
 @pytest.fixture(scope="session")
 def wide_time_plan(run_once):
     """The wide preset's shortest-time plan, explained and checked by re-planning:
-    ``dockjax plan --select time --interval-bounds 0.5 10 --explain --rate 200``, made once.
+    ``dockjax plan --select time --interval-bounds 0.5 10 --explain --rate 200 --n-front 2``,
+    made once.
     → (its folder, what it printed)."""
     def make(folder):
         code, text = _cli(["plan", "--select", "time", "--interval-bounds", "0.5", "10", "--explain", "--rate", "200",
-                           "--out", str(folder / "plan")])
+                           "--n-front", "2", "--out", str(folder / "plan")])
         assert code == 0
         return folder / "plan", text
 
@@ -131,11 +138,12 @@ def wide_time_plan(run_once):
 
 @pytest.fixture(scope="session")
 def wide_compromise_plan(run_once):
-    """``plan(make_problem("wide"), weights=(1, 1))`` with its sensitivities checked, made once."""
+    """``plan(make_problem("wide"), weights=(1, 1), n_front=3)`` with its sensitivities
+    checked, made once."""
     from dockjax.plan import plan
     from dockjax.problem import make_problem
 
-    return run_once("wide-compromise-plan", lambda _: plan(make_problem("wide"), weights=(1.0, 1.0)))
+    return run_once("wide-compromise-plan", lambda _: plan(make_problem("wide"), weights=(1.0, 1.0), n_front=3))
 
 
 @pytest.fixture(scope="session")
@@ -182,3 +190,29 @@ def pymoo_zdt1_igd(run_once) -> float:
         return float(np.median(values))
 
     return run_once("pymoo-zdt1-igd", make)
+
+
+@pytest.fixture(scope="session")
+def tiny_sweep(run_once):
+    """``tests.sweeps.TINY`` run to the end in this process, once: (folder, what it printed)."""
+    from tests import sweeps
+
+    def make(folder):
+        code, text = sweeps.run(folder / "full")
+        assert code == 0
+        return folder / "full", text
+
+    return run_once("sweep-tiny", make)
+
+
+@pytest.fixture(scope="session")
+def tiny_race(run_once):
+    """``tests.sweeps.RACE`` run to the end in this process, once: (folder, what it printed)."""
+    from tests import sweeps
+
+    def make(folder):
+        code, text = sweeps.run(folder / "race", sweeps.RACE)
+        assert code == 0
+        return folder / "race", text
+
+    return run_once("sweep-race", make)

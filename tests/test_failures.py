@@ -64,14 +64,16 @@ def test_damaged_chunk_and_reference_are_recomputed_with_the_same_table(tmp_path
     chunk = next((out / "chunks").glob("round-*-chunk-*.npz"))
     _flip_inside(chunk, "HV.npy")
     _flip_inside(out / "reference.npz", "front.npy")
-    stale = out / ".eaf.png.abc123.tmp"  # a temporary file of a write that was killed
+    stale = out / ".dockjax-eaf.png.abc123.tmp"  # a temporary file of a write that was killed
     stale.write_bytes(b"half")
+    mine = out / ".notes.abc.tmp"  # a user's own hidden file
+    mine.write_text("keep me")
     code, stdout, err = _run([*SWEEP, "--out", str(out)])
     assert code == 0 and "Traceback" not in err, err[-1500:]
     assert "damaged" in stdout + err
     assert (out / "summary.csv").read_text() == before
     load_npz(chunk)  # whole again
-    assert not stale.exists()
+    assert not stale.exists() and mine.read_text() == "keep me"
 
 
 # -- bad input through the installed scripts -----------------------------------------------

@@ -16,6 +16,8 @@ from tests import reference as R
 
 N_DENSE = 10001
 BATCH = 35
+ROWS = 16
+"""Rows per compiled call: the kernel programs the plans and the certified-columns tests compile too."""
 """Rows per evaluate call. One batch size (and few interval bounds) keeps the number of
 compilations, which dominate the run time, small."""
 F_RTOL = 1e-9
@@ -133,7 +135,7 @@ def test_evaluate_matches_reference(seed):
     X = np.vstack(
         [rng.uniform(p.lower, p.upper, (25, p.n_var)), _near_feasible(p, cfg, rng, BATCH - 25)]
     )
-    F, G = p.evaluate(X)
+    F, G = p.evaluate(X, rows=ROWS)
     F, G = np.asarray(F), np.asarray(G)
     _check_against_reference(cfg, X, F, G)
 
@@ -168,7 +170,7 @@ def test_right_arm_modes_match_reference(seed, right_arm):
     X = np.vstack(
         [rng.uniform(p.lower, p.upper, (20, p.n_var)), _near_feasible(p, cfg, rng, BATCH - 20)]
     )
-    F, G = (np.asarray(a) for a in p.evaluate(X))
+    F, G = (np.asarray(a) for a in p.evaluate(X, rows=ROWS))
     _check_against_reference(cfg, X, F, G)
 
 
@@ -181,7 +183,7 @@ def test_evaluate_without_caller_x64_returns_float64_and_leaves_flag():
     before = bool(jax.config.jax_enable_x64)
     p = DockingProblem()
     x = R.straight_line_x(DEFAULT["start"], DEFAULT["goal"], (9.0, 7.0, 8.0, 6.0, 9.5, 8.5))
-    F, G = p.evaluate(np.tile(x, (BATCH, 1)))
+    F, G = p.evaluate(np.tile(x, (BATCH, 1)), rows=ROWS)
     assert isinstance(F, np.ndarray) and isinstance(G, np.ndarray)
     assert F.dtype == np.float64 and G.dtype == np.float64
     assert bool(jax.config.jax_enable_x64) == before
@@ -255,7 +257,7 @@ def test_custom_home_moves_travel_columns():
     X = np.vstack(
         [_near_feasible(p, cfg, rng, 10), rng.uniform(p.lower, p.upper, (BATCH - 10, 36))]
     )
-    F, G = p.evaluate(X)
+    F, G = p.evaluate(X, rows=ROWS)
     _check_against_reference(cfg, X, np.asarray(F), np.asarray(G), home=home)
 
 
@@ -304,7 +306,7 @@ def test_each_limit_kind_binds_for_each_arm(kind, arm):
         x[:6] = np.clip(x[:6], 3.5, 10.0)
         X.append(x)
     X = np.array(X)
-    F, G = p.evaluate(X)
+    F, G = p.evaluate(X, rows=ROWS)
     F, G = np.asarray(F), np.asarray(G)
     dense = _check_against_reference(cfg, X, F, G)
     # the set-up: the reference says this column holds x0, just inside its limit
@@ -331,8 +333,8 @@ def test_reduced_equals_full_with_points_on_the_line():
     np.testing.assert_array_equal(pr.upper, np.full(6, hi))
     H = rng.uniform(pr.lower, pr.upper, (BATCH, 6))
     Xf = np.array([R.reduced_to_full(h, cfg["start"], cfg["goal"]) for h in H])
-    Fr, Gr = (np.asarray(a) for a in pr.evaluate(H))
-    Ff, Gf = (np.asarray(a) for a in pf.evaluate(Xf))
+    Fr, Gr = (np.asarray(a) for a in pr.evaluate(H, rows=ROWS))
+    Ff, Gf = (np.asarray(a) for a in pf.evaluate(Xf, rows=ROWS))
     np.testing.assert_allclose(Fr, Ff, rtol=1e-11)
     np.testing.assert_allclose(Gr, Gf, rtol=1e-11, atol=1e-11)
     _check_against_reference(cfg, Xf, Fr, Gr)
@@ -544,7 +546,7 @@ HARD_RIGHT_X = [
 def test_hard_extrema_are_not_understated(cfg, x, col):
     x = np.asarray(x)
     p = DockingProblem(**cfg)
-    F, G = (np.asarray(a) for a in p.evaluate(np.tile(x, (BATCH, 1))))
+    F, G = (np.asarray(a) for a in p.evaluate(np.tile(x, (BATCH, 1)), rows=ROWS))
     dense = _check_against_reference(cfg, x[None, :], F[:1], G[:1])
     assert G[0, col] >= dense[0, col] - G_BELOW
 
@@ -602,6 +604,6 @@ def test_hard_right_velocity_is_not_understated():
     x = np.asarray(HARD_RIGHT_VEL_X)
     cfg = HARD_RIGHT_VEL_CFG
     p = DockingProblem(**cfg)
-    F, G = (np.asarray(a) for a in p.evaluate(np.tile(x, (BATCH, 1))))
+    F, G = (np.asarray(a) for a in p.evaluate(np.tile(x, (BATCH, 1)), rows=ROWS))
     dense = _check_against_reference(cfg, x[None, :], F[:1], G[:1])
     assert G[0, 13] >= dense[0, 13] - G_BELOW

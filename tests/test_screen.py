@@ -99,9 +99,9 @@ def _sets(p, rng, n):
 def test_screened_columns_against_the_full_chain(preset):
     p = DockingProblem() if preset == "paper" else DockingProblem(interval_bounds=(0.5, 10.0))
     X = _sets(p, np.random.default_rng(11), 512)
-    # in calls of 48 rows: the compiled kernels of tests/test_problem_reference.py
-    Fs, Gs = p.evaluate(X, rows=48)
-    Ff, Gf = p.evaluate(X, screen=False, rows=48)
+    # in calls of 16 rows: the compiled kernels of the reference and plan tests
+    Fs, Gs = p.evaluate(X, rows=16)
+    Ff, Gf = p.evaluate(X, screen=False, rows=16)
     np.testing.assert_array_equal(Fs, Ff)
     d = Gs - Gf
     assert d.min() >= -1e-12, "a screened column is below the exact maximum"

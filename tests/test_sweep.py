@@ -9,10 +9,7 @@ console script.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -22,14 +19,11 @@ import numpy as np
 import pytest
 
 from dockjax import cli, sweep
+from dockjax.io import LOCK_NAME
 from dockjax.sweep.config import PILOT_SEED0, round_seeds
+from tests import sweeps as S
+from tests.sweeps import RACE, TINY
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "experiments" / "sweep.py"
-TINY = ["--pop", "8", "--iters", "3", "--rho", "0.3", "0.5", "--alpha-max", "0.1", "0.2",
-        "--seeds", "2", "--chunk", "2", "--no-progress", "--reference", "pilot"]
-RACE = ["--pop", "8", "--iters", "3", "--rho", "0.3", "0.5", "--alpha-max", "0.1", "0.2",
-        "--seeds", "5", "--chunk", "2", "--no-progress", "--reference", "pilot", "--race", "--race-min-seeds", "2"]
 FIGURES = ("heatmap_hv_imocs_pop8_it3.png", "anytime_hv.png", "eaf.png", "fronts_best_worst.png")
 
 
@@ -37,57 +31,11 @@ def _main(argv: list[str]) -> int:
     return cli.main(["sweep", *argv])
 
 
-def _run(out: Path, base=TINY, *extra: str) -> tuple[int, str]:
-    """The sweep in this process: (exit code, what it printed)."""
-    text = io.StringIO()
-    with contextlib.redirect_stdout(text):
-        code = _main([*base, "--out", str(out), *extra])
-    return code, text.getvalue()
+_run, _process, _table = S.run, S.process, S.table
 
 
-def _process(out: Path, base=TINY, signal_after: str | None = None) -> subprocess.CompletedProcess:
-    """The sweep as a real process (one CPU device, as this one), optionally sending itself
-    a signal after a chunk; SIGINT as a terminal would deliver it, even when this test run
-    started with SIGINT ignored."""
-    env = {k: v for k, v in os.environ.items() if k != "DOCKJAX_SWEEP_SIGNAL"}
-    if signal_after:
-        env["DOCKJAX_SWEEP_SIGNAL"] = signal_after
-    # Python leaves SIGINT ignored in a child started with it ignored (nohup, `&` in a script)
-    shim = ("import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-            "sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')")
-    return subprocess.run([sys.executable, "-c", shim, str(SCRIPT), *base, "--devices", "1", "--out", str(out)],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
-
-
-def _table(out: Path) -> list[list[str]]:
-    """runs.csv without the wall_s column."""
-    lines = (out / "runs.csv").read_text().splitlines()
-    header = lines[0].split(",")
-    assert header[-1] == "wall_s"
-    return [line.split(",")[:-1] for line in lines]
-
-
-@pytest.fixture(scope="module")
-def uninterrupted(run_once) -> tuple[Path, str]:
-    def make(folder):
-        code, text = _run(folder / "full")
-        assert code == 0
-        return folder / "full", text
-
-    return run_once("sweep-tiny", make)
-
-
-@pytest.fixture(scope="module")
-def full_race(run_once) -> tuple[Path, str]:
-    def make(folder):
-        code, text = _run(folder / "race", RACE)
-        assert code == 0
-        return folder / "race", text
-
-    return run_once("sweep-race", make)
-
-
-def test_end_to_end_writes_table_report_and_figures(uninterrupted):
+def test_end_to_end_writes_table_report_and_figures(tiny_sweep):
+    uninterrupted = tiny_sweep
     out, stdout = uninterrupted
     rows = _table(out)
     assert rows[0] == list(sweep.COLUMNS[:-1])
@@ -101,7 +49,7 @@ def test_end_to_end_writes_table_report_and_figures(uninterrupted):
     assert sorted(p.name for p in (out / "chunks").iterdir()) == [f"round-000-chunk-{i:05d}.npz" for i in range(4)]
     for name in ("config.json", "reference.npz", "summary.csv", "summary.md", "report.md", "fronts.npz", *FIGURES):
         assert (out / name).stat().st_size > 0, name
-    assert not [p for p in out.rglob(".*")], "temporary files left behind"
+    assert not [p for p in out.rglob(".*") if p.name != LOCK_NAME], "temporary files left behind"
     fronts = np.load(out / "fronts.npz")
     assert fronts["offsets"][-1] == len(fronts["F"]) == len(fronts["X"]) and len(fronts["setting"]) == 8
     header = (out / "summary.csv").read_text().splitlines()[0].split(",")
@@ -113,8 +61,8 @@ def test_end_to_end_writes_table_report_and_figures(uninterrupted):
     assert "## Verdict" in report and "![eaf](eaf.png)" in report
 
 
-def test_kill_and_resume_gives_the_same_table(uninterrupted, tmp_path):
-    full, _ = uninterrupted
+def test_kill_and_resume_gives_the_same_table(tiny_sweep, tmp_path):
+    full, _ = tiny_sweep
     out = tmp_path / "killed"
     killed = _process(out, signal_after="SIGKILL:1")
     assert killed.returncode == -signal.SIGKILL
@@ -129,8 +77,8 @@ def test_kill_and_resume_gives_the_same_table(uninterrupted, tmp_path):
     assert _table(out) == _table(full)
 
 
-def test_ctrl_c_exits_130_without_a_traceback_and_the_sweep_resumes(uninterrupted, tmp_path):
-    full, _ = uninterrupted
+def test_ctrl_c_exits_130_without_a_traceback_and_the_sweep_resumes(tiny_sweep, tmp_path):
+    full, _ = tiny_sweep
     out = tmp_path / "interrupted"
     r = _process(out, signal_after="SIGINT:2")
     assert r.returncode == 130, r.stderr[-800:]
@@ -141,8 +89,8 @@ def test_ctrl_c_exits_130_without_a_traceback_and_the_sweep_resumes(uninterrupte
     assert _table(out) == _table(full)
 
 
-def test_a_race_resumed_after_a_kill_equals_an_uninterrupted_race(full_race, tmp_path):
-    full, stdout = full_race
+def test_a_race_resumed_after_a_kill_equals_an_uninterrupted_race(tiny_race, tmp_path):
+    full, stdout = tiny_race
     assert "round 0: seeds 0..1" in stdout
     out = tmp_path / "killed"
     # kill after round 0 (4 chunks) and the first chunk of round 1 are written
@@ -154,23 +102,25 @@ def test_a_race_resumed_after_a_kill_equals_an_uninterrupted_race(full_race, tmp
     assert sorted(p.name for p in (out / "chunks").iterdir()) == sorted(p.name for p in (full / "chunks").iterdir())
 
 
-def test_dask_backend_gives_the_same_table(uninterrupted, tmp_path):
+def test_dask_backend_gives_the_same_table(tiny_sweep, tmp_path):
     pytest.importorskip("distributed")
-    full, _ = uninterrupted
+    full, _ = tiny_sweep
     out = tmp_path / "dask"
     assert _run(out, TINY, "--backend", "dask", "--workers", "2")[0] == 0
     assert _table(out) == _table(full)
+    # a cluster of threads runs in this process, on its devices: the study records them
+    assert sweep.load_config(out).devices == sweep.load_config(full).devices == 1
 
 
-def test_a_folder_with_another_configuration_is_refused(uninterrupted, capsys):
-    out, _ = uninterrupted
-    listing = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
-    code = _main([*TINY, "--rho", "0.3", "--out", str(out)])
+def test_a_folder_with_another_configuration_is_refused(tiny_sweep, capsys):
+    out, _ = tiny_sweep
+    listing = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.name != LOCK_NAME}
+    code = _main([*S.argv(TINY, "--rho", "0.3"), "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2
     assert "different sweep configuration" in err and "settings" in err and len(err.strip().splitlines()) == 1
-    assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == listing
-    assert _main([*TINY, "--chunk", "3", "--out", str(out)]) == 2
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.name != LOCK_NAME} == listing
+    assert _main([*S.argv(TINY, "--chunk", "3"), "--out", str(out)]) == 2
     assert "chunk" in capsys.readouterr().err
 
 
@@ -197,7 +147,10 @@ def test_a_folder_resumes_only_with_its_device_count(tmp_path):
     (["--param", "imocs.sigma=0.3"], "unknown hyper-parameter for imocs; allowed: alpha_max, p_a, rho"),
     (["--param", "p_a=1.5"], "p_a (p_a) must be a number in [0, 1]"),
     (["--param", "rho"], "expected NAME=VALUES"),
-    (["--param", "rho=a,b"], "VALUES must be finite numbers"),
+    (["--param", "rho=a,b"], "VALUES must be numbers"),
+    (["--param", "p_a=0_1"], "VALUES must be numbers"),
+    (["--param", "cuckoo.rho=0.3"], "'cuckoo' is not an algorithm"),
+    (["--rho", "0.3", "--rho", "0.4"], "--rho is given twice"),
     (["--param", "p_a=0.1:0.3"], "is a range: sample it with --design random or sobol"),
     (["--algorithm", "mopso", "--param", "mopso.n_div=2.5"], "n_div (divisions) must be an integer >= 1"),
     (["--param", "nsga2.eta_c=10"], "nsga2 is not among --algorithm"),
@@ -207,7 +160,7 @@ def test_a_folder_resumes_only_with_its_device_count(tmp_path):
 ])
 def test_bad_input_exits_2_before_compiling_and_leaves_no_folder(tmp_path, capsys, extra, message):
     out = tmp_path / "new" / "sweep"
-    code = _main([*TINY, *extra, "--out", str(out)])
+    code = _main([*S.argv(TINY, *extra), "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2
     assert message in err and err.startswith("error: ") and len(err.strip().splitlines()) == 1, err
@@ -320,7 +273,7 @@ def test_best_known_reference_is_computed_once_per_problem_and_recorded(tmp_path
     assert cfg.reference["kind"] == "best-known"
     ref = np.load(tmp_path / "a" / "reference.npz")
     assert str(ref["source"]) == "best-known" and len(ref["front"]) >= 2
-    assert _main([*args, "--seeds", "1", "--out", str(tmp_path / "b")]) == 0
+    assert _main([*S.argv(args, "--seeds", "1"), "--out", str(tmp_path / "b")]) == 0
     assert cached[0].stat().st_mtime_ns == mtime  # reused, not recomputed
     np.testing.assert_array_equal(np.load(tmp_path / "b" / "reference.npz")["front"], ref["front"])
 

@@ -67,9 +67,9 @@ from .design import ParamSpec, Setting, build_settings, parse_param
 from .execute import run_chunk
 from .paper import paper_config, paper_tables
 from .report import Study, load_config, load_study, load_table, report, summarise
-from .resume import prepare_folder, remove_created, run_sweep
+from .resume import Claim, claim_folder, prepare_folder, remove_created, run_sweep
 
 __all__ = ["COLUMNS", "ChunkSpec", "ConfigError", "SweepConfig", "load_front_file", "make_config", "pilot_spec",
            "plan_round", "ParamSpec", "Setting", "build_settings", "parse_param", "run_chunk", "paper_config",
            "paper_tables", "Study", "load_config", "load_study", "load_table", "report", "summarise",
-           "prepare_folder", "remove_created", "run_sweep"]
+           "Claim", "claim_folder", "prepare_folder", "remove_created", "run_sweep"]

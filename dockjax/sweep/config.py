@@ -15,18 +15,20 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
 from .. import config
 from ..algorithms import get, make_params
+from ..io import check_input_file, load_npz
 from ..metrics import nondominated_points
 from ..problem import bucket_rows
+from ..runtime import check_memory
 from .design import ParamSpec, Setting, build_settings, static_key
-from .files import load_npz
 
 __all__ = ["FORMAT", "PILOT_SEED0", "COLUMNS", "INDICATOR_COLUMNS", "ConfigError", "SweepConfig", "ChunkSpec",
            "round_seeds", "plan_round", "pilot_spec", "load_front_file", "make_config"]
@@ -200,34 +202,83 @@ def _sha256(a: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(a, dtype=np.float64).tobytes()).hexdigest()
 
 
-def load_front_file(path: Path) -> np.ndarray:
-    """A best-known front from .npz (key 'front', 'reference_front' or 'F', or the only
-    array) or .csv/.txt (two columns T, jerk; a header line is skipped). → distinct
-    non-dominated (r, 2). Raises ConfigError."""
+MAX_FRONT_FILE = 64 * 2**20
+"""Largest reference-front file read (bytes)."""
+
+
+def load_front_file(path: Path, log: Callable[[str], None] | None = None) -> np.ndarray:
+    """A reference front from .npz (key 'front', 'reference_front' or 'F', or the only
+    array) or .csv/.txt (two columns T, jerk; one header line allowed). The file must be a
+    regular file of at most :data:`MAX_FRONT_FILE` bytes and hold real, finite numbers, two
+    columns, at least two distinct points; dominated points are dropped, with a line to
+    ``log`` saying how many. → distinct non-dominated (r, 2), sorted by T. Raises
+    ConfigError naming what is wrong."""
     path = Path(path)
+    what = f"--reference-front {path}"
     try:
+        check_input_file(path, "--reference-front", MAX_FRONT_FILE)
         if path.suffix == ".npz":
             z = load_npz(path)
             key = next((k for k in ("front", "reference_front", "F") if k in z), None)
             if key is None and len(z) == 1:
                 key = next(iter(z))
             if key is None:
-                raise ConfigError(f"--reference-front {path}: no array 'front' in {sorted(z)}")
+                raise ConfigError(f"{what}: no array 'front' in {sorted(z)}")
             F = z[key]
+            if F.dtype.kind not in "iuf":
+                raise ConfigError(f"{what}: the front must hold real numbers, got dtype {F.dtype}")
         else:
-            lines = path.read_text().strip().splitlines()
-            try:
-                F = np.loadtxt(lines, delimiter=",", ndmin=2)
-            except ValueError:
-                F = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+            lines = path.read_text(encoding="utf-8-sig").strip().splitlines()
+            with np.errstate(all="raise"), warnings.catch_warnings():
+                warnings.simplefilter("error")
+                try:
+                    F = np.loadtxt(lines, delimiter=",", ndmin=2)
+                except ValueError:
+                    F = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
     except ConfigError:
         raise
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"--reference-front {path} cannot be read: {exc}") from None
+    except (OSError, ValueError, UnicodeDecodeError, RuntimeWarning, FloatingPointError) as exc:
+        raise ConfigError(f"{what} cannot be read: {exc}") from None
     F = np.asarray(F, dtype=np.float64)
-    if F.ndim != 2 or F.shape[1] != 2 or len(F) == 0 or not np.isfinite(F).all():
-        raise ConfigError(f"--reference-front {path} must hold a finite, non-empty (r, 2) array, got shape {F.shape}")
-    return nondominated_points(F)
+    if F.ndim != 2 or F.shape[1] != 2:
+        raise ConfigError(f"{what} must hold two columns (T, jerk), got shape {F.shape}")
+    if not np.isfinite(F).all():
+        raise ConfigError(f"{what} must hold finite numbers (row {int(np.argmin(np.isfinite(F).all(1)))} is not)")
+    front = nondominated_points(F)
+    if len(front) < 2:
+        raise ConfigError(f"{what} must hold at least two distinct non-dominated points, got {len(front)}")
+    if len(front) < len(F) and log is not None:
+        log(f"reference front: {len(F) - len(front)} of {len(F)} points of {path} are dominated or repeated; "
+            f"using the {len(front)} non-dominated ones")
+    return front
+
+
+def size_errors(algorithms, params, pop, iters, budget, samples, seeds, chunk) -> list[str]:
+    """What a study would cost, refused before anything is built when it is too much: the
+    number of settings (:data:`dockjax.config.MAX_SETTINGS`), the evaluations
+    (:data:`dockjax.config.MAX_EVALUATIONS`) and the memory of one chunk."""
+    grid = math.prod(max(1, len(s.values)) for s in params if not s.is_range)
+    ranged = any(s.is_range for s in params)
+    shapes = len(pop) if budget is not None else len(pop) * max(1, len(iters))
+    n_settings = max(1, len(algorithms)) * grid * (max(1, samples) if ranged else 1) * max(1, shapes)
+    if n_settings > config.MAX_SETTINGS:
+        return [f"the design has {n_settings} settings (--samples, --param grids, --pop, --iters), more than "
+                f"{config.MAX_SETTINGS}"]
+    longest = max([budget // max(1, min(pop or [1]))] if budget is not None else list(iters) or [1])
+    evaluations = n_settings * seeds * max(pop or [1]) * (longest + 1)
+    errors = []
+    if evaluations > config.MAX_EVALUATIONS:
+        days = evaluations / config.EVALUATIONS_PER_SECOND / 86400
+        errors.append(f"the study asks for about {evaluations:.3g} evaluations (settings × --seeds × --pop × --iters "
+                      f"or --budget), about {days:.3g} days at {config.EVALUATIONS_PER_SECOND:,} a second; at most "
+                      f"{config.MAX_EVALUATIONS:.0e}")
+    runs = min(chunk, seeds)
+    try:
+        check_memory(runs * (2 * max(pop or [1]) * config.BYTES_PER_CANDIDATE + 16 * longest),
+                     "a chunk of --chunk runs at --pop with --iters of history")
+    except ValueError as exc:
+        errors.append(str(exc))
+    return errors
 
 
 def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[ParamSpec] = (), pop=(config.POP_SIZE,),
@@ -244,6 +295,17 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
     (None unless read from a file). Raises ConfigError with every problem on one line,
     naming the options."""
     errors: list[str] = []
+    for name, values in (("--pop", list(pop)), ("--iters", list(iters)), ("--budget", [budget or 0]),
+                         ("--seeds", [seeds]), ("--chunk", [chunk]), ("--samples", [samples]),
+                         ("--design-seed", [design_seed]), ("--race-min-seeds", [race_min_seeds]),
+                         ("--refine-steps", [refine_steps])):
+        big = [v for v in values if abs(v) > config.MAX_COUNT]
+        if big:
+            errors.append(f"{name} {big[0]} is too large (at most {config.MAX_COUNT})")
+    if errors:
+        raise ConfigError("; ".join(errors))
+    params = list(params)
+    errors += size_errors(algorithms, params, pop, iters, budget, samples, seeds, chunk)
     if preset not in config.PRESETS:
         errors.append(f"--preset must be one of {', '.join(config.PRESETS)}, got {preset!r}")
     if driver not in ("scan", "host"):

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from dataclasses import dataclass
 from typing import Iterable, Sequence
 
@@ -107,28 +108,46 @@ class ParamSpec:
         return self.lo is not None
 
 
+NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+"""A number as ``--param`` takes it: digits, an optional point and exponent (no ``_``,
+no ``inf`` or ``nan``: Python's ``float`` accepts ``0_1`` as 1)."""
+
+
+def _number(text: str) -> float:
+    text = text.strip()
+    if not NUMBER.fullmatch(text):
+        raise ValueError(text)
+    return float(text)
+
+
 def parse_param(text: str) -> ParamSpec:
-    """``[algorithm.]field=v1,v2,…`` (a grid) or ``[algorithm.]field=lo:hi`` (a range).
-    Raises ValueError naming the malformed part."""
+    """``[algorithm.]field=v1,v2,…`` (a grid) or ``[algorithm.]field=lo:hi`` (a range);
+    the algorithm's name in any case. Raises ValueError naming the malformed part."""
     if "=" not in text:
         raise ValueError(f"--param {text!r}: expected NAME=VALUES, e.g. rho=0.2,0.4 or imocs.alpha_max=0.05:0.3")
     name, spec = (s.strip() for s in text.split("=", 1))
     algorithm, _, field = name.rpartition(".")
     if not field:
         raise ValueError(f"--param {text!r}: no field name before '='")
+    if algorithm:
+        try:
+            algorithm = algorithms.get(algorithm).name
+        except ValueError:
+            raise ValueError(f"--param {text!r}: {algorithm!r} is not an algorithm (one of "
+                             f"{', '.join(algorithms.ALGORITHMS)})") from None
     try:
         if ":" in spec:
-            lo, hi = (float(v) for v in spec.split(":"))
-            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            lo, hi = (_number(v) for v in spec.split(":"))
+            if not lo < hi:
                 raise ValueError
             return ParamSpec(field, algorithm or None, lo=lo, hi=hi)
-        values = tuple(float(v) for v in spec.split(",") if v.strip())
-        if not values or not all(math.isfinite(v) for v in values):
+        values = tuple(_number(v) for v in spec.split(","))
+        if not values:
             raise ValueError
         return ParamSpec(field, algorithm or None, values=values)
     except ValueError:
-        raise ValueError(f"--param {text!r}: VALUES must be finite numbers separated by commas, or lo:hi with "
-                         "lo < hi") from None
+        raise ValueError(f"--param {text!r}: VALUES must be numbers (such as 0.25 or 1e-3) separated by commas, or "
+                         "lo:hi with lo < hi") from None
 
 
 def _check_field(algorithm: str, field: str) -> None:

@@ -5,6 +5,7 @@ on a Dask cluster (:class:`DaskBackend`)."""
 from __future__ import annotations
 
 import logging
+import signal
 import time
 from functools import lru_cache
 from typing import Any, Callable, Iterator
@@ -81,6 +82,11 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
     return out
 
 
+def _ignore_interrupts() -> None:
+    """On a Dask worker process: ignore SIGINT (the client handles Ctrl-C)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class LocalBackend:
     """Chunks one after another in this process."""
 
@@ -107,6 +113,9 @@ class DaskBackend:
             self.client = Client(self.cluster)
             if processes:
                 self.client.run(enable_compilation_cache)
+                # Ctrl-C is the client's to handle (it closes the cluster): the workers, in its
+                # process group, would each print a traceback
+                self.client.run(_ignore_interrupts)
 
     def map(self, fn: Callable, specs: list[ChunkSpec], *args) -> Iterator[tuple[ChunkSpec, Any]]:
         from distributed import as_completed

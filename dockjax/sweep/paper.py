@@ -25,7 +25,7 @@ import numpy as np
 from .. import config, metrics, plots, select
 from ..algorithms import get
 from ..io import atomic_write_text
-from .config import ConfigError, SweepConfig
+from .config import ConfigError, SweepConfig, size_errors
 from .design import Setting
 from .execute import problem_of
 from .report import Study, markdown_table, write_table
@@ -51,6 +51,12 @@ def paper_config(preset: str = "paper", *, seeds: int = config.N_SEEDS, pop: int
     naming the option."""
     errors = [f"--{name} must be >= {lo}, got {v}" for name, v, lo in (
         ("seeds", seeds, 1), ("pop", pop, 4), ("iters", iters, 1), ("refine-steps", refine_steps, 0)) if v < lo]
+    errors += [f"--{name} {v} is too large (at most {hi})" for name, v, hi in (
+        ("seeds", seeds, config.MAX_COUNT), ("pop", pop, config.MAX_COUNT), ("iters", iters, config.MAX_COUNT),
+        ("refine-steps", refine_steps, config.MAX_COUNT)) if v > hi]
+    if not errors:
+        errors += size_errors(list(algorithms) + ["imocs"] * bool(refine_steps), [], (pop,), (iters,), None, 0, seeds,
+                               seeds)
     if preset not in config.PRESETS:
         errors.append(f"--presets: {preset!r} is not one of {', '.join(config.PRESETS)}")
     try:
@@ -63,10 +69,11 @@ def paper_config(preset: str = "paper", *, seeds: int = config.N_SEEDS, pop: int
     if len(set(names)) != len(names):
         errors.append(f"--algorithms names an algorithm twice: {names}")
     best = {**config.BEST_KNOWN, **(best_known or {})}
-    for key, option, lo in (("n_points", "--best-known-points", 2), ("n_exact", "--best-known-anchors", 2),
-                            ("steps", "--best-known-steps", 1)):
-        if best[key] < lo:
-            errors.append(f"{option} must be >= {lo}, got {best[key]}")
+    ranges = (("n_points", "--best-known-points", 2, 10_000), ("n_exact", "--best-known-anchors", 2, 1_000),
+              ("steps", "--best-known-steps", 1, 100_000))
+    for key, option, lo, hi in ranges:
+        if not lo <= best[key] <= hi:
+            errors.append(f"{option} must be from {lo} to {hi}, got {best[key]}")
     if errors:
         raise ConfigError("; ".join(errors))
     settings = [Setting(a, pop, iters) for a in names]
@@ -110,12 +117,12 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
-def paper_tables(study: Study, log: Callable[[str], None] = print) -> tuple[list[str], list[Path]]:
+def paper_tables(study: Study, out: Path, log: Callable[[str], None] = print) -> tuple[list[str], list[Path]]:
     """The report extension of ``dockjax compare`` (see the module docstring): writes
     ``paper.csv``, ``table3.csv``, ``table4.csv``, ``chosen.json``, ``fronts.png``,
-    ``left_arm_xyz.png``, ``joints.png`` and ``convergence.png``; returns the lines of
-    ``report.md``'s section and the files."""
-    out, cfg, cols = study.out, study.cfg, study.cols
+    ``left_arm_xyz.png``, ``joints.png`` and ``convergence.png`` into ``out``; returns the
+    lines of ``report.md``'s section and the files."""
+    cfg, cols = study.cfg, study.cols
     problem = problem_of(cfg.preset)
     ref = study.ref["front"]
     hv_front = metrics.indicators(ref, None, ref, hv_ref=float(study.ref["hv_ref"]))["HV"]

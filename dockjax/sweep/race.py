@@ -6,7 +6,9 @@ Friedman's test across them; if it rejects at ``alpha``, Conover's post-hoc comp
 the rank sums against the best drops every setting significantly worse
 (:func:`dockjax.stats.conover`); with two survivors, the Wilcoxon signed-rank test decides.
 The race stops when the seed budget is spent or one setting is left. Everything here is a
-pure function of the scores, so a resumed race takes the same decisions.
+pure function of the scores, and the decision after a round (:func:`decide`) sees only the
+seeds run by then, so a resumed race, a re-run of a finished one and the report
+(:func:`replay`) take the same decisions, whatever else the folder holds.
 """
 
 from __future__ import annotations
@@ -15,8 +17,9 @@ import numpy as np
 from scipy import stats as sps
 
 from .. import stats
+from .config import round_seeds
 
-__all__ = ["eliminate"]
+__all__ = ["eliminate", "decide", "replay"]
 
 
 def eliminate(scores: np.ndarray, alive: np.ndarray, alpha: float, min_seeds: int) -> np.ndarray:
@@ -45,3 +48,29 @@ def eliminate(scores: np.ndarray, alive: np.ndarray, alpha: float, min_seeds: in
         worse = stats.conover(S, alpha)
         alive[idx[worse]] = False
     return alive
+
+
+def decide(cfg, scores: np.ndarray, alive: np.ndarray, seeds_done: int) -> np.ndarray:
+    """The survivors after a round of the race of ``cfg`` that ended with ``seeds_done``
+    seeds run: :func:`eliminate` on the scores (settings, seeds) of seeds ``0 ..
+    seeds_done − 1`` only (a later round's scores, where present, are not looked at)."""
+    seen = np.where(np.arange(scores.shape[1])[None, :] < seeds_done, scores, np.nan)
+    return eliminate(seen, alive, cfg.race["alpha"], cfg.race["min_seeds"])
+
+
+def replay(cfg, scores: np.ndarray) -> list[tuple[range, np.ndarray]]:
+    """Every round of the race of ``cfg`` from the scores (settings, seeds) of its finished
+    runs: ``(the round's seeds, the survivors after it)``, the decisions of :func:`decide`."""
+    alive = np.ones(len(cfg.settings), bool)
+    rounds, done, r = [], 0, 0
+    while True:
+        seeds = round_seeds(cfg, r, done, int(alive.sum()))
+        if len(seeds) == 0:
+            break
+        done = seeds.stop
+        alive = decide(cfg, scores, alive, done)
+        rounds.append((seeds, alive.copy()))
+        r += 1
+        if alive.sum() <= 1 or done >= cfg.seeds:
+            break
+    return rounds

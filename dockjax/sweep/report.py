@@ -32,11 +32,11 @@ import numpy as np
 from scipy.stats import rankdata
 
 from .. import plots, stats
-from ..io import atomic_savez, atomic_write_text
+from ..io import atomic_savez, atomic_write_text, write_set
 from .config import COLUMNS, INDICATOR_COLUMNS, SweepConfig, round_seeds
 from .design import symbol
-from .files import load_npz
-from .race import eliminate
+from .files import finished_chunks, load_npz
+from .race import replay
 
 __all__ = ["Study", "Summary", "load_table", "load_config", "load_study", "summarise", "report", "write_table",
            "markdown_table"]
@@ -60,13 +60,15 @@ def load_config(out: Path) -> SweepConfig:
     return SweepConfig.from_identity(json.loads((Path(out) / "config.json").read_text())["identity"])
 
 
-def load_table(out: Path) -> tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-    """Every chunk file of ``out`` merged, runs sorted by (setting, seed): the columns, each
+def load_table(out: Path, cfg: SweepConfig | None = None
+               ) -> tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """The runs of the study in ``out`` (its configuration ``cfg``, default the folder's),
+    from the chunk files of its plan only (:func:`dockjax.sweep.files.finished_chunks`:
+    a stray or foreign file is not read), sorted by (setting, seed): the columns, each
     run's front F (k, 2) and its trajectories X (k, n_var), and each run's anytime
-    hypervolume (iterations,)."""
-    parts = [load_npz(p) for p in sorted((Path(out) / "chunks").glob("round-*-chunk-*.npz"))]
-    if not parts:
-        raise RuntimeError(f"no chunk files in {out / 'chunks'}")
+    hypervolume (iterations,). Raises RuntimeError when the study is not finished."""
+    cfg = load_config(out) if cfg is None else cfg
+    parts = [data for _, data in finished_chunks(cfg, Path(out))]
     keys = ("setting", "algorithm", "seed", "round", "chunk", *INDICATOR_COLUMNS, "T_min", "T_max", "jerk_min",
             "jerk_max", "wall_s")
     cols = {k: np.concatenate([p[k] for p in parts]) for k in keys}
@@ -85,25 +87,6 @@ def _matrix(cfg: SweepConfig, cols, column: str) -> np.ndarray:
     M = np.full((len(cfg.settings), cfg.seeds), np.nan)
     M[cols["setting"], cols["seed"]] = cols[column]
     return M
-
-
-def replay_race(cfg: SweepConfig, hv: np.ndarray) -> list[np.ndarray]:
-    """The survivors after every round of a race (the decisions of
-    :func:`dockjax.sweep.resume.run_sweep`, taken again from the stored scores)."""
-    alive = np.ones(len(cfg.settings), bool)
-    rounds, done, r = [], 0, 0
-    while True:
-        seeds = round_seeds(cfg, r, done, int(alive.sum()))
-        if len(seeds) == 0:
-            break
-        done = seeds.stop
-        scores = np.where(np.arange(cfg.seeds)[None, :] < done, hv, np.nan)
-        alive = eliminate(scores, alive, cfg.race["alpha"], cfg.race["min_seeds"])
-        rounds.append(alive.copy())
-        r += 1
-        if alive.sum() <= 1 or done >= cfg.seeds:
-            break
-    return rounds
 
 
 @dataclass
@@ -141,14 +124,14 @@ def load_study(out: Path) -> Study:
     """The folder's configuration, runs, reference and statistics (:func:`summarise`)."""
     out = Path(out)
     cfg = load_config(out)
-    cols, fronts, fronts_X, history = load_table(out)
+    cols, fronts, fronts_X, history = load_table(out, cfg)
     return Study(out, cfg, cols, fronts, fronts_X, history, load_npz(out / "reference.npz"), summarise(cfg, cols))
 
 
 def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
     """The statistics of every setting (see the module docstring)."""
     hv, igdp = _matrix(cfg, cols, "HV"), _matrix(cfg, cols, "IGD+")
-    rounds = replay_race(cfg, hv) if cfg.race else []
+    rounds = [alive for _, alive in replay(cfg, hv)] if cfg.race else []
     finalists = rounds[-1] if rounds else np.isfinite(hv).any(axis=1)
     idx = np.flatnonzero(finalists)
     common = np.all(np.isfinite(hv[idx]), axis=0)
@@ -250,9 +233,10 @@ def _md_table(rows: list[dict], limit: int | None = None) -> list[str]:
         for r in rows[:limit]])
 
 
-def _figures(study: Study) -> list[Path]:
-    out, cfg, cols, fronts, history, summary, ref = (study.out, study.cfg, study.cols, study.fronts, study.history,
-                                                     study.summary, study.ref)
+def _figures(study: Study, out: Path) -> list[Path]:
+    """The study's figures, written into ``out``."""
+    cfg, cols, fronts, history, summary, ref = (study.cfg, study.cols, study.fronts, study.history, study.summary,
+                                                study.ref)
     written: list[Path] = []
     rows = _order(summary.rows)
     ranked = [r["setting"] for r in rows if r["runs"]]
@@ -333,40 +317,58 @@ def _figures(study: Study) -> list[Path]:
     return written
 
 
-Extension = Callable[[Study, Callable[[str], None]], tuple[list[str], list[Path]]]
-"""A report extension: ``(study, log) -> (lines of report.md, files written)``."""
+Extension = Callable[[Study, Path, Callable[[str], None]], tuple[list[str], list[Path]]]
+"""A report extension: ``(study, folder, log) -> (lines of report.md, files written into
+folder)``."""
 
 
 def report(out: Path, *, top: int = 10, extensions: Sequence[Extension] = (),
            log: Callable[[str], None] = print) -> list[Path]:
-    """Tables, statistics, ``report.md`` and the figures of a finished sweep folder (every
-    file atomically), with the sections and files of ``extensions``; prints the verdict and
-    the leading rows. Returns the files written."""
+    """Tables, statistics, ``report.md`` and the figures of a finished sweep folder, with
+    the sections and files of ``extensions``, written as one set
+    (:func:`dockjax.io.write_set`: an interrupted report leaves the previous one whole);
+    prints the verdict and the leading rows. Returns the files written."""
     study = load_study(out)
-    out, cfg, cols, fronts, ref, summary = study.out, study.cfg, study.cols, study.fronts, study.ref, study.summary
+    written = write_set(out, lambda stage: _report_files(study, stage, extensions, log))
+    rows = _order(study.summary.rows)
+    log("")
+    for line in _verdict(study.cfg, study.summary):
+        log(line.replace("**", ""))
+    log(f"{'':>2}  {'setting':<46} {'runs':>4} {'HV median [95% CI]':>26} {'p (Holm)':>9} {'A12':>5}  verdict")
+    for r in rows[:top]:
+        p = "" if math.isnan(r["p_holm"]) else f"{r['p_holm']:.3g}"
+        a = "" if math.isnan(r["A12_best_over"]) else f"{r['A12_best_over']:.2f}"
+        ci = f"{r['HV_median']:.4f} [{r['HV_ci_low']:.4f}, {r['HV_ci_high']:.4f}]"
+        log(f"{'':>2}  {r['label'][:46]:<46} {r['runs']:>4} {ci:>26} {p:>9} {a:>5}  {r['status']}")
+    if len(rows) > top:
+        log(f"    ... {len(rows) - top} more in {Path(out) / 'summary.csv'}")
+    log(f"wrote {len(written)} files to {out}: {', '.join(p.name for p in written)}")
+    return written
+
+
+def _report_files(study: Study, folder: Path, extensions, log) -> list[Path]:
+    """Every file of the report, written into ``folder``."""
+    cfg, cols, fronts, ref, summary = study.cfg, study.cols, study.fronts, study.ref, study.summary
     written = []
     table = {**cols, "pop": np.array([cfg.settings[i].pop for i in cols["setting"]]),
              "iterations": np.array([cfg.settings[i].iters for i in cols["setting"]]),
              "params": np.array([" ".join(f"{k}={v:g}" for k, v in cfg.settings[i].params) for i in cols["setting"]])}
     written.append(write_table([{c: table[c][i] for c in COLUMNS} for i in range(len(cols["setting"]))], COLUMNS,
-                               out / "runs.csv"))
+                               folder / "runs.csv"))
     offsets = np.cumsum([0] + [len(f) for f in fronts])
-    atomic_savez(out / "fronts.npz", {"F": np.concatenate(fronts + [np.zeros((0, 2))]),
-                                       "X": np.concatenate(study.fronts_X), "offsets": offsets,
-                                       "setting": cols["setting"], "seed": cols["seed"]})
-    written.append(out / "fronts.npz")
-
+    written.append(atomic_savez(folder / "fronts.npz", {"F": np.concatenate(fronts + [np.zeros((0, 2))]),
+                                                         "X": np.concatenate(study.fronts_X), "offsets": offsets,
+                                                         "setting": cols["setting"], "seed": cols["seed"]}))
     rows = _order(summary.rows)
-    written.append(write_table(rows, SUMMARY_COLUMNS, out / "summary.csv"))
+    written.append(write_table(rows, SUMMARY_COLUMNS, folder / "summary.csv"))
     verdict = _verdict(cfg, summary)
     source = str(ref.get("source", "pilot"))
     note = (f"Indicators on objectives normalised by the fixed reference front of reference.npz ({source}, "
             f"{len(ref['front'])} points; HV reference point {float(ref['hv_ref'])}). Intervals: percentile "
             "bootstrap of the median, 95 %.")
-    written.append(atomic_write_text(out / "summary.md", "\n".join(_md_table(rows)) + "\n\n" + note + "\n"))
-    figures = _figures(study)
+    written.append(atomic_write_text(folder / "summary.md", "\n".join(_md_table(rows)) + "\n\n" + note + "\n"))
+    figures = _figures(study, folder)
     written += figures
-
     md = ["# Sweep report", "",
           f"{len(cfg.settings)} settings of {', '.join(cfg.algorithms)} on the {cfg.preset} preset, "
           f"{len(cols['setting'])} runs"
@@ -386,21 +388,8 @@ def report(out: Path, *, top: int = 10, extensions: Sequence[Extension] = (),
         md.append("")
     md += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figures] + [""]
     for extend in extensions:
-        lines, files = extend(study, log)
-        md += lines + [""]
+        section, files = extend(study, folder, log)
+        md += section + [""]
         written += files
-    written.append(atomic_write_text(out / "report.md", "\n".join(md)))
-
-    log("")
-    for line in verdict:
-        log(line.replace("**", ""))
-    log(f"{'':>2}  {'setting':<46} {'runs':>4} {'HV median [95% CI]':>26} {'p (Holm)':>9} {'A12':>5}  verdict")
-    for r in rows[:top]:
-        p = "" if math.isnan(r["p_holm"]) else f"{r['p_holm']:.3g}"
-        a = "" if math.isnan(r["A12_best_over"]) else f"{r['A12_best_over']:.2f}"
-        ci = f"{r['HV_median']:.4f} [{r['HV_ci_low']:.4f}, {r['HV_ci_high']:.4f}]"
-        log(f"{'':>2}  {r['label'][:46]:<46} {r['runs']:>4} {ci:>26} {p:>9} {a:>5}  {r['status']}")
-    if len(rows) > top:
-        log(f"    ... {len(rows) - top} more in {out / 'summary.csv'}")
-    log(f"wrote {len(written)} files to {out}: {', '.join(p.name for p in written)}")
+    written.append(atomic_write_text(folder / "report.md", "\n".join(md)))
     return written

@@ -10,6 +10,7 @@ import signal
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -17,16 +18,16 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
-from ..io import atomic_savez, atomic_write_text
+from ..io import TEMP_PREFIX, FolderBusyError, FolderLock, atomic_write_text, make_folders
 from ..version import __version__
-from .config import ChunkSpec, ConfigError, SweepConfig, plan_round, round_seeds
+from .config import ConfigError, SweepConfig, plan_round, round_seeds
 from .design import Setting
 from .execute import DaskBackend, LocalBackend, run_chunk
-from .files import DamagedFileError, load_npz
-from .race import eliminate
+from .files import read_chunk, write_chunk
+from .race import decide
 from .reference import fixed_reference
 
-__all__ = ["prepare_folder", "remove_created", "run_sweep", "scores_table"]
+__all__ = ["Claim", "claim_folder", "prepare_folder", "remove_created", "run_sweep"]
 
 
 def _diff(a: dict, b: dict) -> list[str]:
@@ -67,6 +68,8 @@ def prepare_folder(out: Path, cfg: SweepConfig) -> list[Path]:
             if cfg_path.exists():
                 try:
                     stored = json.loads(cfg_path.read_text())["identity"]
+                    if not isinstance(stored, dict):
+                        raise ValueError(f"its identity is a {type(stored).__name__}, not a table")
                 except (OSError, ValueError, KeyError, TypeError) as exc:
                     raise ConfigError(f"--out {out}: config.json is unreadable ({exc}); use another folder") from None
                 want = json.loads(json.dumps(cfg.identity()))
@@ -77,17 +80,10 @@ def prepare_folder(out: Path, cfg: SweepConfig) -> list[Path]:
                 raise ConfigError(f"--out {out} is not empty and holds no sweep (no config.json); "
                                   "use a new or empty folder")
         else:
-            missing = []
-            p = out
-            while not p.exists():
-                missing.append(p)
-                p = p.parent
-            for p in reversed(missing):
-                try:
-                    p.mkdir()
-                except OSError as exc:
-                    raise ConfigError(f"--out {out} cannot be created: {exc.strerror or exc}") from None
-                created.append(p)
+            try:
+                created = make_folders(out)
+            except OSError as exc:
+                raise ConfigError(f"--out {out} cannot be created: {exc.strerror or exc}") from None
         try:
             fd, probe = tempfile.mkstemp(dir=out, prefix=".write-test.")
             os.close(fd)
@@ -98,6 +94,51 @@ def prepare_folder(out: Path, cfg: SweepConfig) -> list[Path]:
         remove_created(created)
         raise
     return created
+
+
+@dataclass
+class Claim:
+    """A study folder held by this process (:func:`claim_folder`): the folders the claim
+    created and the lock held on it."""
+
+    out: Path
+    created: list[Path]
+    lock: FolderLock
+
+    def release(self) -> None:
+        self.lock.release()
+
+    def abandon(self) -> None:
+        """Leave the folder as it was found (nothing of the study in it yet): remove the
+        folders this claim created, or the lock file it created, and release the lock."""
+        remove_created(self.created)
+        self.lock.release(remove=self.lock.created_file and not self.created)
+
+
+def claim_folder(out: Path, cfg: SweepConfig, command: str | None = None) -> Claim:
+    """The folder ``out`` for this study, held by this process alone: created if missing,
+    locked (:class:`dockjax.io.FolderLock`; another process holding it is refused, naming
+    it), then checked as :func:`prepare_folder` does. Raises ConfigError; folders it
+    created are removed again unless another process holds them."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} exists and is not a folder")
+    try:
+        created = make_folders(out)
+    except OSError as exc:
+        raise ConfigError(f"--out {out} cannot be created: {exc.strerror or exc}") from None
+    lock = FolderLock(out, command)
+    try:
+        lock.acquire()
+    except FolderBusyError as exc:
+        raise ConfigError(str(exc)) from None
+    claim = Claim(out, created, lock)
+    try:
+        prepare_folder(out, cfg)
+    except ConfigError:
+        claim.abandon()
+        raise
+    return claim
 
 
 def remove_created(created: list[Path]) -> None:
@@ -116,32 +157,6 @@ def _write_config(out: Path, cfg: SweepConfig) -> None:
     atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
 
 
-def scores_table(out: Path, cfg: SweepConfig, column: str = "HV") -> np.ndarray:
-    """(settings, seeds) of one indicator over every chunk file in ``out/chunks`` (NaN where
-    a run has not happened)."""
-    table = np.full((len(cfg.settings), cfg.seeds), np.nan)
-    for path in sorted((out / "chunks").glob("round-*-chunk-*.npz")):
-        z = load_npz(path)
-        table[z["setting"], z["seed"]] = z[column]
-    return table
-
-
-def _check(path: Path, spec: ChunkSpec) -> bool:
-    """Whether a chunk file is complete and holds the runs of ``spec`` (ConfigError if it
-    holds other runs: the folder belongs to another plan)."""
-    if not path.exists():
-        return False
-    try:
-        z = load_npz(path)
-        settings, seeds, _ = z["setting"], z["seed"], z["front_offsets"]
-    except (DamagedFileError, KeyError):  # truncated, damaged or incomplete: recomputed
-        return False
-    if tuple(settings.tolist()) != spec.settings[:spec.n_real] or tuple(seeds.tolist()) != spec.seeds[:spec.n_real]:
-        raise ConfigError(f"--out {path.parent.parent}: {path.name} holds other runs than this sweep's plan; "
-                          "use another folder")
-    return True
-
-
 def _signal_hook() -> tuple[int, int] | None:
     """The test hook ``DOCKJAX_SWEEP_SIGNAL=NAME:N`` (e.g. ``SIGKILL:3``): the sweep sends
     itself that signal right after writing its N-th chunk, as a user's ``kill -9`` or Ctrl-C
@@ -156,9 +171,16 @@ def _signal_hook() -> tuple[int, int] | None:
 def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, backend: str = "local",
               scheduler: str | None = None, workers: int = 2, dask_processes: bool = False,
               progress: bool = True, log: Callable[[str], None] = print) -> int:
-    """Run every missing chunk of the sweep in ``out`` (after :func:`prepare_folder`), round
-    after round (one round without racing). Returns the number of chunks computed now."""
+    """Run every missing chunk of the sweep in ``out`` (after :func:`claim_folder` or
+    :func:`prepare_folder`), round after round (one round without racing), holding the
+    folder (:class:`dockjax.io.FolderLock`) throughout. Returns the number of chunks
+    computed now."""
     out = Path(out)
+    with FolderLock(out):
+        return _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress, log)
+
+
+def _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress, log) -> int:
     chunks_dir = out / "chunks"
     if backend == "dask":
         try:
@@ -174,43 +196,55 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
         _write_config(out, cfg)
         chunks_dir.mkdir(exist_ok=True)
         for folder in (out, chunks_dir):  # temporary files left by a kill during a write
-            for stale in folder.glob(".*.*.tmp"):
-                stale.unlink(missing_ok=True)
+            for stale in folder.glob(f"{TEMP_PREFIX}*.tmp"):  # dockjax's own only
+                if stale.is_dir():
+                    shutil.rmtree(stale, ignore_errors=True)
+                else:
+                    stale.unlink(missing_ok=True)
         kind = f"race over {cfg.seeds} seeds (min {cfg.race['min_seeds']})" if cfg.race else f"{cfg.seeds} seeds"
         log(f"sweep: {', '.join(cfg.algorithms)}; {len(cfg.settings)} settings, {kind}, {cfg.n_runs()} runs at most")
         ref = fixed_reference(out, cfg, front, be, log)
         reference = {k: ref[k] for k in ("front", "ideal", "nadir", "hv_ref")}
         alive = np.ones(len(cfg.settings), bool)
+        scores = np.full((len(cfg.settings), cfg.seeds), np.nan)  # HV of the plan's finished runs
         seeds_done, r = 0, 0
         bar = tqdm(total=None if cfg.race else cfg.n_runs(), unit="run", disable=not progress, file=sys.stderr,
                    dynamic_ncols=True, smoothing=0.1)
+
+        def say(message: str) -> None:  # a line of its own, not glued to the progress bar
+            bar.clear()
+            log(message)
+            bar.refresh()
+
         times: dict[tuple, list[float]] = {}
         try:
             while True:
                 seeds = round_seeds(cfg, r, seeds_done, int(alive.sum()))
                 if len(seeds) == 0:
                     break
+                todo = []
                 plan = plan_round(cfg, r, alive, seeds)
-                done = [c for c in plan if _check(chunks_dir / c.name, c)]
-                todo = [c for c in plan if c not in done]
-                if done:
-                    log(f"round {r}: resuming, {len(done)} of {len(plan)} chunks already done")
-                bar.update(sum(c.n_real for c in done))
-
-                def say(message: str) -> None:  # a line of its own, not glued to the progress bar
-                    bar.clear()
-                    log(message)
-                    bar.refresh()
-
+                for spec in plan:
+                    data, why = read_chunk(chunks_dir / spec.name, cfg, spec)
+                    if data is None:
+                        todo.append(spec)
+                        if why:
+                            say(f"{spec.name} {why}: computed again")
+                    else:
+                        scores[data["setting"], data["seed"]] = data["HV"]
+                        bar.update(spec.n_real)
+                if len(todo) < len(plan):
+                    say(f"round {r}: resuming, {len(plan) - len(todo)} of {len(plan)} chunks already done")
                 for spec, res in be.map(run_chunk, todo, reference):
-                    atomic_savez(chunks_dir / spec.name, res)
+                    write_chunk(chunks_dir / spec.name, cfg, res)
+                    scores[res["setting"], res["seed"]] = res["HV"]
                     computed += 1
                     seconds = float(res["wall_s"][0]) * len(spec.seeds)
                     key = (spec.label, spec.pop, spec.iters)
                     times.setdefault(key, []).append(seconds)
                     bar.update(spec.n_real)
                     t = times[key]
-                    bar.set_postfix_str(f"{spec.algorithm} pop {spec.pop}: " + (
+                    bar.set_postfix_str(f"{spec.label} pop {spec.pop}: " + (
                         f"first chunk (compile + run) {seconds:.1f} s" if len(t) == 1 else
                         f"{np.median(t[1:]):.2f} s/chunk"))
                     if hook and computed == hook[1]:
@@ -219,7 +253,7 @@ def run_sweep(cfg: SweepConfig, out: Path, *, front: np.ndarray | None = None, b
                 if cfg.race is None:
                     break
                 before = int(alive.sum())
-                alive = eliminate(scores_table(out, cfg), alive, cfg.race["alpha"], cfg.race["min_seeds"])
+                alive = decide(cfg, scores, alive, seeds_done)
                 say(f"round {r}: seeds {seeds.start}..{seeds.stop - 1}, {before} settings raced, "
                     f"{int(alive.sum())} left")
                 r += 1
