@@ -43,7 +43,7 @@ def pytest_configure(config):
 
     CACHE.mkdir(exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(CACHE))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # the workers share even small programs
     jax.devices()  # one CPU device per test process, whatever a command run in-process asks for
 
 
