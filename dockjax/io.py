@@ -16,6 +16,7 @@ import stat
 import sys
 import tempfile
 import threading
+import time
 import zipfile
 import zlib
 from pathlib import Path
@@ -44,6 +45,18 @@ class DamagedFileError(ValueError):
 
 class FolderBusyError(ValueError):
     """Another process holds the folder (:class:`FolderLock`); names it."""
+
+
+def _holder(fd: int, wait: float = 1.0) -> str:
+    """What the lock file open at ``fd`` says of its holder: ``"PID … (command)"``. The
+    holder writes it just after taking the lock, so an empty file is read again for up to
+    ``wait`` seconds before settling for ``"another process"``."""
+    deadline = time.monotonic() + wait
+    while True:
+        text = os.pread(fd, 4096, 0).decode(errors="replace").strip()
+        if text or time.monotonic() >= deadline:
+            return text or "another process"
+        time.sleep(0.01)
 
 
 class FolderLock:
@@ -78,7 +91,7 @@ class FolderLock:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
-                holder = os.read(fd, 4096).decode(errors="replace").strip() or "another process"
+                holder = _holder(fd)
                 os.close(fd)
                 raise FolderBusyError(f"{self.folder} is in use by {holder}; wait for it to finish or use another "
                                       "folder") from None

@@ -159,6 +159,26 @@ def test_two_processes_never_write_one_folder_at_once(tmp_path):
     assert refused >= 5  # the delays do make them overlap
 
 
+def test_a_refusal_names_a_holder_that_has_not_yet_written_its_name(tmp_path):
+    """A holder writes its PID and command just after taking the lock: a process refused in
+    between waits for the name rather than saying "another process"."""
+    import fcntl
+    import threading
+
+    from dockjax.io import FolderBusyError, FolderLock
+
+    fd = os.open(tmp_path / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # held, the file still empty
+    late = threading.Timer(0.2, lambda: os.write(fd, b"PID 12345 (writer late)"))
+    late.start()
+    try:
+        with pytest.raises(FolderBusyError, match=r"is in use by PID 12345 \(writer late\)"):
+            FolderLock(tmp_path, "writer early").acquire()
+    finally:
+        late.join()
+        os.close(fd)
+
+
 def test_a_second_sweep_on_a_busy_folder_exits_2_naming_the_holder(tmp_path):
     """A real second ``dockjax sweep`` on a folder that another process holds; after the
     holder ends — killed, here — the folder is free again."""
