@@ -63,6 +63,20 @@ def test_a_race_interrupted_after_any_chunk_resumes_to_the_uninterrupted_table(t
     assert (out / "summary.csv").read_text() == (full / "summary.csv").read_text()
 
 
+def test_a_dask_race_interrupted_in_round_1_resumes_to_the_uninterrupted_table(tiny_race, tmp_path):
+    """The same with the Dask backend (two workers): interrupted in round 1, then resumed,
+    it ends with the local uninterrupted race's runs.csv."""
+    pytest.importorskip("distributed")
+    full, _ = tiny_race
+    out = tmp_path / "race"
+    dask = [*S.RACE, "--backend", "dask", "--workers", "2"]
+    code, err = _interrupted(out, dask, 5)
+    assert code == 130 and "Traceback" not in err
+    assert len(list((out / "chunks").glob("round-*.npz"))) == 5
+    assert S.run(out, dask)[0] == 0
+    assert S.table(out) == S.table(full)
+
+
 def test_a_finished_race_run_again_recomputes_nothing_and_decides_the_same(tiny_race, tmp_path):
     full, _ = tiny_race
     out = tmp_path / "again"
