@@ -1,6 +1,7 @@
 """Behaviour under other process-level XLA settings, computed in one subprocess (they can
 only be chosen before JAX starts): two CPU devices, as the sweep CLI asks for, and LLVM
-optimisation level 0, which rounds fused computations differently."""
+optimisation level 0, which rounds fused computations differently, with JAX's default
+(MLIR) fusion emitters where the rest of the suite compiles with the classic ones."""
 
 from __future__ import annotations
 
@@ -83,8 +84,9 @@ def other_process(tmp_path_factory, worker_id):
             fcntl.flock(lock, fcntl.LOCK_EX)
         if fcntl is None or not path.exists():
             part = root / f"xla_settings.{worker_id}.npz"
-            env = {**os.environ,
-                   "XLA_FLAGS": (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()}
+            # JAX's default code generation (tests/conftest.py's classic-emitter flag removed), at O0
+            flags = os.environ.get("XLA_FLAGS", "").replace("--xla_cpu_use_fusion_emitters=false", "")
+            env = {**os.environ, "XLA_FLAGS": (flags + " --xla_backend_optimization_level=0").strip()}
             r = subprocess.run([sys.executable, "-c", SCRIPT, str(part)], env=env, capture_output=True,
                                text=True, timeout=600)
             assert r.returncode == 0, r.stderr[-3000:]
