@@ -38,11 +38,12 @@ settings.register_profile("thorough", max_examples=400, deadline=None, database=
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
-# XLA:CPU's classic fusion emitters: the suite's programs compile in about 40 % less time
-# than with the default (MLIR) emitters, and run as fast; results differ from the default
-# only in rounding (the jerk integral's last bits). Set before JAX starts, so the test
-# processes and their CLI subprocesses compile this way; tests/test_xla_settings.py runs
-# its subprocess with JAX's defaults, so both code generators are exercised.
+# XLA:CPU's classic fusion emitters: the suite's programs compile in about 30 % less time
+# than with the default (MLIR) emitters (benchmarks/bench_compile.py), and run about as
+# fast; results differ from the default only in rounding (the jerk integral's last bits).
+# Set before JAX starts, so the test processes and their CLI subprocesses compile this way;
+# tests/test_xla_settings.py runs its subprocess with JAX's defaults, so both code
+# generators are exercised.
 CLASSIC_EMITTERS = "--xla_cpu_use_fusion_emitters=false"
 
 
