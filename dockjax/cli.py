@@ -385,6 +385,9 @@ class PlanArgs:
     """Which point of the front (paper Table 4 types)."""
     weights: tuple[float, float] | None = None
     """Weights (w_T, w_jerk) of Eq. 26; overrides --select."""
+    duration: float | None = None
+    """Plan of exactly this many seconds: the least jerk at that duration, overriding --select and --weights (exit 1
+    below the shortest feasible time, naming the limit that binds it)."""
     rate: float = config.RATE
     """Servo rate of the CSV [Hz]."""
     method: Method = "direct"
@@ -413,7 +416,7 @@ class PlanArgs:
 PLAN_OPTIONS = {"weights": "--weights", "rate": "--rate", "method": "--method", "pop_size": "--pop",
                 "n_iter": "--iters", "seed": "--seed", "refine_steps": "--refine-steps", "n_front": "--n-front",
                 "start": "--start", "goal": "--goal", "arm_distance": "--arm-distance",
-                "interval_bounds": "--interval-bounds"}
+                "interval_bounds": "--interval-bounds", "duration": "--duration"}
 """The library's argument names of a plan and the options that give them."""
 
 
@@ -458,7 +461,7 @@ def _make_plan(problem, weights, rate: float, **options):
 def plan(args: PlanArgs) -> int:
     """Validate, plan, certify, write."""
     from . import select
-    from .plan import check_move, check_options, explain_text, load_limits, write_plan
+    from .plan import check_duration, check_move, check_options, explain_text, load_limits, write_plan
     from .problem import DockingProblem
 
     weights = args.weights if args.weights is not None else select.PAPER_TYPES[args.select]
@@ -477,12 +480,13 @@ def plan(args: PlanArgs) -> int:
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
                                  interval_bounds=args.interval_bounds, **extra)
         check_move(problem)
+        check_duration(problem, args.duration)
     except ValueError as exc:
         return _error(_as_option(str(exc), PLAN_OPTIONS))
     with _holding(args.out, "plan") as files:
         p, code = _make_plan(problem, weights, args.rate, method=args.method, pop_size=args.pop, n_iter=args.iters,
                              seed=args.seed, refine_steps=args.refine_steps, n_front=args.n_front,
-                             check_sensitivities=args.explain)
+                             check_sensitivities=args.explain, duration=args.duration)
         if p is None:
             return code
         files += write_plan(p, args.out)

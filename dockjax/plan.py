@@ -32,7 +32,7 @@ from .trajectory import Trajectory, bucket_durations
 from .version import __version__
 
 __all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "explain_text", "check_options", "check_move",
-           "load_limits", "write_plan", "METHODS"]
+           "load_limits", "write_plan", "check_duration", "METHODS"]
 
 
 @dataclass
@@ -277,6 +277,21 @@ def check_move(problem: DockingProblem) -> None:
                          "to plan")
 
 
+def check_duration(problem: DockingProblem, duration) -> float | None:
+    """:func:`plan`'s ``duration`` checked against the interval bounds (ValueError naming
+    it): None, or a finite number of seconds no longer than the longest T the bounds allow
+    (``6 × hi``). Cheap: no JAX computation. A duration below the shortest feasible time is
+    not bad input but a :class:`PlanError` of :func:`plan` (it takes a solve to know)."""
+    if duration is None:
+        return None
+    d = checks.vector("duration", [duration], (1,), positive=True)[0]
+    longest = config.N_INTERVALS * problem.interval_bounds[1]
+    if d > longest:
+        raise ValueError(f"duration {d:g} s is longer than the longest T = {longest:g} s the interval bounds "
+                         f"{problem.interval_bounds} allow ({config.N_INTERVALS} intervals); widen the interval bounds")
+    return float(d)
+
+
 def check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front) -> tuple[np.ndarray, float]:
     """:func:`plan`'s options checked (ValueError naming the option) and resolved: the
     weights (2,) and the rate (Hz). Cheap: no JAX computation."""
@@ -294,7 +309,7 @@ def check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n
 def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: float = config.RATE,
          method: str = "direct", pop_size: int = config.POP_SIZE, n_iter: int = config.N_ITER, seed: int = 0,
          refine_steps: int = config.PLAN_REFINE_STEPS, n_front: int = config.PLAN_FRONT,
-         check_sensitivities: bool = True) -> Plan:
+         check_sensitivities: bool = True, duration: float | None = None) -> Plan:
     """Plan one certified trajectory for ``problem`` and explain it.
 
     ``method="direct"`` (default): the shortest time by SQP (:func:`dockjax.solve.min_time`),
@@ -307,6 +322,12 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     ``rate`` and by the kernel's rigorous maxima) and explained (:func:`explain`; with
     ``check_sensitivities`` the sensitivities are checked by re-planning).
 
+    ``duration`` (s): instead of a choice by weights, the least-jerk plan that takes exactly
+    that long (to rounding; :func:`_of_duration`), for a move that must fit a fixed cycle.
+    It must be at most the longest T the interval bounds allow (``6 × hi``, else
+    ValueError); below the shortest feasible time, :class:`PlanError` names the limit that
+    binds the shortest-time trajectory and that time.
+
     Raises ValueError on bad input (before any work) and :class:`PlanError` when no
     trajectory meets the limits.
     """
@@ -315,34 +336,90 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
         raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
     w, rate = check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front)
     check_move(problem)
+    d = check_duration(problem, duration)
     time_only = w[1] == 0
     shortest = _shortest(problem)
+    if d is not None and d < shortest.F[0]:
+        raise _too_short(problem, shortest, d)
     if method == "direct":
         _, front = _direct_front(problem, n_front, shortest)
         sols = [shortest] + front
         front_F = np.array([s.F for s in sols])
-        chosen = shortest if time_only else sols[select.choose(front_F, w)]
+        chosen = shortest if time_only or d is not None else sols[select.choose(front_F, w)]
         if chosen is not shortest:  # the chosen cap solved once more, from the straight line too
             chosen = solve.least_jerk(problem, float(chosen.F[0]), [chosen.x]) or chosen
     else:
         X, F = _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps)
         chosen = shortest
-        if not time_only:
+        if not time_only and d is None:
             j = select.choose(F, w)
             chosen = solve.least_jerk(problem, float(F[j, 0]), [X[j]])
             if chosen is None:
                 raise PlanError(f"the least-jerk solve at T = {F[j, 0]:.6g} s found no certified trajectory")
         front_F = np.concatenate([F, chosen.F[None], shortest.F[None]])
-    samples = _certify(problem, chosen.x, rate)
     time_only = chosen is shortest
+    if d is not None:
+        found = [shortest.x] + ([s.x for s in sols[1:]] if method == "direct" else list(X))
+        T_found = np.array([shortest.F[0]] + ([s.F[0] for s in sols[1:]] if method == "direct" else list(F[:, 0])))
+        chosen, time_only = _of_duration(problem, d, shortest, found, T_found)
+        front_F = np.concatenate([np.asarray(front_F, np.float64), chosen.F[None]])
+    samples = _certify(problem, chosen.x, rate)
     why = explain(problem, chosen, samples, time_optimal=time_only, check=check_sensitivities)
     settings = {"weights": list(map(float, w)), "rate": rate, "method": method, "n_front": n_front,
                 "shortest_T_s": float(shortest.F[0])}
+    if d is not None:
+        settings = {"duration_s": d, **{k: v for k, v in settings.items() if k != "weights"}}
     if method != "direct":
         settings.update(pop_size=pop_size, n_iter=n_iter, seed=seed, refine_steps=int(refine_steps))
     F = nondominated_points(np.asarray(front_F, np.float64))
     return Plan(problem, problem.decode(chosen.x), chosen.x, float(chosen.F[0]), float(chosen.F[1]), F,
                 samples, rate, tuple(w), settings, why)
+
+
+def _too_short(problem: DockingProblem, shortest: solve.Solution, duration: float) -> PlanError:
+    """The :class:`PlanError` of a duration below the shortest feasible time: names the
+    limit that binds the shortest-time trajectory (the binding column worth the most time,
+    by its sensitivity), or the interval bounds when no limit binds, and the time."""
+    T = float(shortest.F[0])
+    head = f"no trajectory takes {duration:g} s: the shortest feasible time is {T:.6g} s"
+    G = np.asarray(shortest.G).reshape(config.N_JOINTS, 3)
+    sens = np.abs(solve.sensitivities(problem, shortest)) * (G > -BINDING)
+    if sens.max() > 0:
+        j, k = np.unravel_index(np.argmax(sens), sens.shape)
+        return PlanError.of_column(problem, int(j), int(k), head + ", bound by the limit {limit}",
+                                   excess=float(G[j, k]))
+    return PlanError(head + f", bound by the interval bounds {problem.interval_bounds} "
+                     f"(every interval at least {problem.interval_bounds[0]:g} s)")
+
+
+def _of_duration(problem: DockingProblem, T: float, shortest: solve.Solution, found, T_found):
+    """The least-jerk certified solution that takes exactly ``T`` seconds (``T`` at least
+    the shortest time): :func:`dockjax.solve.least_jerk` at the cap ``T``, from the found
+    trajectory with the longest time up to ``T`` slowed to it (exact time scaling keeps it
+    feasible) and from the straight line; the answer is then slowed by the exact time
+    scaling ``T / T(x)`` (at least 1: a hair, as the solve stops a hair inside its cap),
+    which lowers every rate and the jerk. Where the certificate slowed the solve beyond
+    ``T``, the cap is lowered by as much and solved again. Near the shortest time (within
+    :data:`dockjax.solve.SHORTEST_SLACK`) the shortest-time trajectory is slowed instead.
+    → ``(solution, time_optimal)``."""
+    if T <= shortest.F[0] * (1 + solve.SHORTEST_SLACK):
+        sol, time_optimal = shortest, True
+    else:
+        T_found = np.asarray(T_found, np.float64)
+        i = int(np.argmax(np.where(T_found <= T, T_found, -np.inf)))
+        starts, cap, sol, time_optimal = [solve.time_scale(problem, found[i], T / T_found[i])], T, None, False
+        for _ in range(3):
+            sol = solve.least_jerk(problem, cap, starts)
+            if sol is None or sol.F[0] <= T:
+                break
+            cap *= T / sol.F[0]
+            starts = [sol.x]
+        if sol is None or sol.F[0] > T:
+            raise PlanError(f"the least-jerk solve at T = {T:.6g} s found no certified trajectory of that duration")
+    x = solve.time_scale(problem, sol.x, T / float(np.sum(sol.x[: config.N_INTERVALS])))
+    x[: config.N_INTERVALS] = np.minimum(x[: config.N_INTERVALS], problem.upper[: config.N_INTERVALS])
+    F, G = problem.evaluate(x[None], screen=False)
+    return dataclasses.replace(sol, x=x, F=F[0], G=G[0]), time_optimal
 
 
 class Planner:

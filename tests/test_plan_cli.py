@@ -14,6 +14,8 @@ import pytest
 
 from dockjax import DockingProblem, cli
 from dockjax.io import LOCK_NAME
+from dockjax.problem import make_problem
+from tests import reference as R
 
 PLAN_ARGS = ["--rate", "200"]
 NO_REFINE = ["--refine-steps", "0"]
@@ -92,6 +94,43 @@ def test_plan_exits_1_naming_the_limit_when_the_goal_cannot_be_reached(tmp_path,
     assert list(out.iterdir()) == []  # left as it was found
 
 
+def test_a_plan_of_a_given_duration_takes_it_and_is_no_jerkier_than_the_chosen_plan_slowed_to_it(paper_plan,
+                                                                                                  tmp_path):
+    chosen = json.loads((paper_plan / "summary.json").read_text())
+    x0, T = np.array(chosen["x"]), 1.05 * chosen["T_s"]
+    out = tmp_path / "plan"
+    code, text = _main(["plan", *PLAN_ARGS, "--n-front", "2", "--duration", repr(T), "--out", str(out)])
+    assert code == 0, text
+    s = json.loads((out / "summary.json").read_text())
+    x, problem = np.array(s["x"]), make_problem("paper")
+    assert s["settings"]["duration_s"] == T and "weights" not in s["settings"]
+    # independent references: SciPy's B-spline for T and the jerk, dense sampling for the limits
+    T_ref, J_ref = R.reference_objectives(x, problem.start, problem.goal, problem.arm_distance)
+    assert T_ref == pytest.approx(T, rel=1e-12) and J_ref == pytest.approx(s["jerk"], rel=1e-8)
+    _, ok = R.dense_check(problem, x[None], n_samples=40001)
+    assert ok.all()
+    # the compromise plan slowed to T by exact time scaling is one trajectory of that duration
+    slowed = x0.copy()
+    slowed[:6] *= T / chosen["T_s"]
+    T_s, J_s = R.reference_objectives(slowed, problem.start, problem.goal, problem.arm_distance)
+    assert T_s == pytest.approx(T, rel=1e-12) and J_ref <= J_s * (1 + 1e-9), (J_ref, J_s)
+    t_last = float((out / "trajectory.csv").read_text().strip().splitlines()[-1].split(",")[0])
+    assert t_last == pytest.approx(T, abs=1e-9)
+
+
+def test_a_duration_below_the_shortest_time_exits_1_naming_the_binding_limit_and_the_time(wide_time_plan, tmp_path,
+                                                                                          capsys):
+    T_min = json.loads((wide_time_plan[0] / "summary.json").read_text())["T_s"]
+    out = tmp_path / "out"
+    code, _ = _main(["plan", *PLAN_ARGS, "--interval-bounds", "0.5", "10", "--duration", f"{0.97 * T_min:.4f}",
+                     "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    # the lateral joints' velocity or acceleration bind the wide preset's shortest time
+    assert f"{T_min:.6g}" in err and ("d_L3" in err or "d_R3" in err) and "Traceback" not in err, err
+    assert not out.exists()
+
+
 def test_a_plan_error_names_its_limit_as_data():
     from dockjax.plan import PlanError, plan
 
@@ -119,6 +158,8 @@ def test_a_plan_error_names_its_limit_as_data():
         (["--method", "simplex"], "--method"),
         (["--seed", str(2**70)], "--seed"),
         (["--pop", "3", "--method", "imocs"], "--pop"),
+        (["--duration", "61"], "--duration"),  # longer than 6 x 10 s, the paper's interval bounds
+        (["--duration", "-1"], "--duration"),
     ],
 )
 def test_plan_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args, needle):
