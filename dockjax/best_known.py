@@ -82,7 +82,7 @@ def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: i
     checks.integer("n_points", n_points, 2)
     checks.integer("n_exact", n_exact, 2)
     t0 = time.perf_counter()
-    n = config.N_INTERVALS
+    n = problem.n_intervals
     fastest = shortest(problem, straight_line(problem, [n * problem.interval_bounds[0]])[0])
     if fastest is None:
         raise infeasibility(problem)
@@ -152,8 +152,8 @@ def best_known_cached(problem: DockingProblem, path=None, log: Callable[[str], N
 
 def reference_point(problem: DockingProblem) -> np.ndarray:
     """A fixed hypervolume reference point (objective units) for convergence curves, set
-    before any run: T = 6 h_max, and twice the jerk of the straight-line trajectory at the
+    before any run: T = (n + 1) h_max (6 h_max in the paper), and twice the jerk of the straight-line trajectory at the
     shortest intervals (a fast, plain candidate). → (2,)."""
     lo, hi = problem.interval_bounds
-    F, _ = problem.evaluate(straight_line(problem, [config.N_INTERVALS * lo]))
-    return np.array([config.N_INTERVALS * hi, 2 * F[0, 1]])
+    F, _ = problem.evaluate(straight_line(problem, [problem.n_intervals * lo]))
+    return np.array([problem.n_intervals * hi, 2 * F[0, 1]])

@@ -1,16 +1,18 @@
 """Quintic clamped B-spline trajectories (paper §3.2, Eqs. 16–23; conventions §2).
 
 Everything here is a pure ``jax.numpy`` function of the knots and control points, with
-static shapes, so it jits and vmaps. The knot vector is built from the six intervals
-``h_1..h_6``::
+static shapes, so it jits and vmaps. The knot vector is built from the ``s`` intervals
+``h_1..h_s`` (the paper: s = 6)::
 
-    u = [0,0,0,0,0,0, t_1, t_2, t_3, t_4, t_5, T,T,T,T,T,T]      (Eq. 20; 17 knots)
+    u = [0,0,0,0,0,0, t_1, …, t_{s−1}, T,T,T,T,T,T]      (Eq. 20; s + 11 knots, 17 in the paper)
 
-with ``t_k = h_1 + … + h_k`` and ``T = t_6``. The 11 control points are
-``d_0 = d_1 = d_2 = P_o``, ``d_3..d_7`` free, ``d_8 = d_9 = d_10 = P_e`` (Eqs. 18–19).
+with ``t_k = h_1 + … + h_k`` and ``T = t_s``. The ``s + 5`` control points are
+``d_0 = d_1 = d_2 = P_o``, ``n = s − 1`` free ones (the paper: ``d_3..d_7``) and three copies
+of ``P_e`` (Eqs. 18–19). The number of spans is read from the shapes, so one function serves
+every ``n``; each distinct ``n`` compiles once.
 
 For fast exact work the spline is converted, span by span, to local power series
-``p(t) = Σ_m c[k, m] (t − t_{k})^m`` on span ``k = 0..5`` (``[t_k, t_{k+1}]`` with
+``p(t) = Σ_m c[k, m] (t − t_{k})^m`` on span ``k = 0..s−1`` (``[t_k, t_{k+1}]`` with
 ``t_0 = 0``): the coefficients are the derivatives at the span's left knot, computed from
 the derivative control points of Eq. 22 and the Cox–de Boor basis (Eq. 16).
 """
@@ -28,11 +30,13 @@ DEGREE = 5
 N_CTRL = 11
 N_KNOTS = N_CTRL + DEGREE + 1  # 17
 N_SPANS = 6
+"""Spans of the paper's family (5 free control points); other families have ``n + 1``."""
 
 __all__ = [
     "DEGREE",
     "N_SPANS",
     "knots",
+    "interior_knots",
     "control_points",
     "line_control_points",
     "basis_functions",
@@ -46,7 +50,7 @@ __all__ = [
 
 
 def knots(h):
-    """Knot vector of Eq. 20 from the six intervals. h: (..., 6) → (..., 17)."""
+    """Knot vector of Eq. 20 from the intervals. h: (..., s) → (..., s + 11)."""
     h = jnp.asarray(h)
     t = jnp.cumsum(h, axis=-1)
     zeros = jnp.zeros(h.shape[:-1] + (DEGREE + 1,), h.dtype)
@@ -54,18 +58,24 @@ def knots(h):
     return jnp.concatenate([zeros, t[..., :-1], ends], axis=-1)
 
 
+def interior_knots(u):
+    """The span boundaries ``t_1..t_{s−1}`` inside ``(0, T)`` of a knot vector (s + 11,)."""
+    return u[DEGREE + 1 : u.shape[-1] - DEGREE - 1]
+
+
 def control_points(start, goal, interior):
-    """Control points of Eqs. 18–19. start, goal: (d,); interior: (5, d) → (11, d)."""
+    """Control points of Eqs. 18–19. start, goal: (d,); interior: (n, d) → (n + 6, d)."""
     interior = jnp.asarray(interior)
     start = jnp.broadcast_to(jnp.asarray(start, interior.dtype), (3, interior.shape[-1]))
     goal = jnp.broadcast_to(jnp.asarray(goal, interior.dtype), (3, interior.shape[-1]))
     return jnp.concatenate([start, interior, goal], axis=0)
 
 
-def line_control_points(start, goal):
-    """Interior points ``d_3..d_7`` evenly spaced on the segment start→goal (conventions §3). (5, d)."""
+def line_control_points(start, goal, n: int = N_SPANS - 1):
+    """``n`` interior points evenly spaced on the segment start→goal, at ``i / (n + 1)``,
+    i = 1..n (conventions §3; the paper's ``d_3..d_7`` for n = 5). → (n, d)."""
     start, goal = jnp.asarray(start), jnp.asarray(goal)
-    s = jnp.arange(1, 6, dtype=start.dtype)[:, None] / 6.0
+    s = jnp.arange(1, n + 1, dtype=start.dtype)[:, None] / float(n + 1)
     return start + s * (goal - start)
 
 
@@ -133,23 +143,24 @@ def _derivative_levels(ctrl, u, order: int):
 def span_coefficients(ctrl, u):
     """Local power-series coefficients of the trajectory on each span.
 
-    Returns ``c`` (6, 6, d): on span k, ``p(t) = Σ_m c[k, m] τ^m`` with ``τ = t − u[5 + k]``;
+    Returns ``c`` (s, 6, d): on span k, ``p(t) = Σ_m c[k, m] τ^m`` with ``τ = t − u[5 + k]``;
     ``c[k, m] = p^(m)(u[5+k]) / m!`` from the derivative control points of Eq. 22 evaluated
-    with the basis of Eq. 16 (Eq. 21). ctrl: (11, d), u: (17,).
+    with the basis of Eq. 16 (Eq. 21). ctrl: (s + 5, d), u: (s + 11,); s = 6 in the paper.
 
     The derivative of order m has degree ``p − m`` on the knots ``u[m : 17 − m]``, where
     the left knot of span k has index ``p + k − m``: its basis there is the degree-``p − m``
-    stage of one Cox–de Boor triangle over the six left knots, with the same knot
+    stage of one Cox–de Boor triangle over the s left knots, with the same knot
     differences for every m.
     """
     p = DEGREE
-    k = np.arange(N_SPANS)
+    n_spans = ctrl.shape[0] - p
+    k = np.arange(n_spans)
     bases = basis_functions(u, p + k, u[p + k], p)
     coeffs = []
     for m, q in enumerate(_derivative_levels(ctrl, u, p)):
         nb = bases[p - m]
         # elementwise over the span's p − m + 1 control points (fuses; no tiny matmuls)
-        val = sum(nb[i][:, None] * q[i : i + N_SPANS] for i in range(p - m + 1))
+        val = sum(nb[i][:, None] * q[i : i + n_spans] for i in range(p - m + 1))
         coeffs.append(val / math.factorial(m))
     return jnp.stack(coeffs, axis=1)
 
@@ -198,11 +209,10 @@ def poly_taylor(c, x, order: int | None = None):
 def evaluate(c, u, t, derivative: int = 0):
     """Evaluate the spline (or a derivative) at times t from its span coefficients.
 
-    c: (6, 6, d) from :func:`span_coefficients`, u: (17,), t: (m,) in [0, T] → (m, d).
+    c: (s, 6, d) from :func:`span_coefficients`, u: (s + 11,), t: (m,) in [0, T] → (m, d).
     """
     t = jnp.asarray(t)
-    inner = u[DEGREE + 1 : DEGREE + N_SPANS]  # t_1..t_5
-    k = jnp.searchsorted(inner, t, side="right")
+    k = jnp.searchsorted(interior_knots(u), t, side="right")
     tau = t - u[DEGREE + k]
     ck = jnp.moveaxis(c[k], 1, -1)  # (m, d, 6)
     return poly_eval(poly_derivative(ck, derivative), tau[:, None])

@@ -122,6 +122,8 @@ class SweepArgs:
     """Significance level of the race's tests."""
     preset: Preset = "paper"
     """Problem preset: paper (h in [3.5, 10] s) or wide (h in [0.5, 10] s)."""
+    n_control: int = config.N_FREE
+    """Free control points of the problem's quintic B-spline (1 to 64; the paper's 5)."""
     refine_steps: int = 0
     """Memetic finish: polish every run's final population with this many gradient-refinement steps (dockjax.refine;
     the algorithm column then reads e.g. imocs+refine). 0: off."""
@@ -202,8 +204,9 @@ def sweep(args: SweepArgs) -> int:
             errors.append("--backend dask needs Dask distributed: pip install 'dockjax[distributed]'")
     try:
         pop = max(args.pop) if args.pop else config.POP_SIZE
-        check_memory(min(args.chunk, args.seeds) * 2 * pop * config.BYTES_PER_CANDIDATE, "a chunk of --chunk runs "
-                     "at --pop")
+        checks.integer("--n-control", args.n_control, 1, config.MAX_CONTROL)
+        check_memory(min(args.chunk, args.seeds) * 2 * pop * config.candidate_bytes(args.n_control),
+                     "a chunk of --chunk runs at --pop")
         check_memory(args.seeds * (2 * pop * 2 + 1024) * 8, "storing --seeds runs")
         check_out(args.out)
         n_devices = claim_devices(args.devices)  # before any JAX computation
@@ -218,7 +221,7 @@ def sweep(args: SweepArgs) -> int:
                                      refine_steps=args.refine_steps, chunk=args.chunk, reference=args.reference,
                                      reference_front=args.reference_front, race=args.race,
                                      race_min_seeds=args.race_min_seeds, race_alpha=args.race_alpha,
-                                     devices=_study_devices(args, n_devices))
+                                     devices=_study_devices(args, n_devices), n_control=args.n_control)
         except ValueError as exc:
             raise ConfigError("; ".join([str(exc), *errors])) from None
         if errors:
@@ -290,6 +293,8 @@ class CompareArgs:
     """Iterations per run."""
     presets: tuple[Preset, ...] = tuple(config.PRESETS)
     """Problem presets to run."""
+    n_control: int = config.N_FREE
+    """Free control points of the problem's quintic B-spline (1 to 64; the paper's 5)."""
     algorithms: tuple[Algorithm, ...] = ("nsga2", "mopso", "mocs", "imocs")
     """Algorithms to compare."""
     refine_steps: int = config.MEMETIC_STEPS
@@ -321,7 +326,8 @@ def compare(args: CompareArgs) -> int:
     if not args.presets:
         errors.append("--presets must name at least one preset")
     try:
-        check_memory(args.seeds * 2 * args.pop * config.BYTES_PER_CANDIDATE, "--seeds runs at --pop")
+        checks.integer("--n-control", args.n_control, 1, config.MAX_CONTROL)
+        check_memory(args.seeds * 2 * args.pop * config.candidate_bytes(args.n_control), "--seeds runs at --pop")
         check_out(args.out)
         checks.optional_integer("--devices", args.devices, 1)
     except ValueError as exc:
@@ -333,7 +339,8 @@ def compare(args: CompareArgs) -> int:
                                            algorithms=args.algorithms, refine_steps=args.refine_steps,
                                            best_known={"n_points": args.best_known_points,
                                                        "n_exact": args.best_known_anchors,
-                                                       "steps": args.best_known_steps}, devices=None)
+                                                       "steps": args.best_known_steps}, devices=None,
+                                           n_control=args.n_control)
         except ConfigError as exc:
             errors.append(str(exc))
             break
@@ -380,7 +387,10 @@ class PlanArgs:
     arm_distance: float = config.ARM_DISTANCE
     """Distance D2 between the arm ends [mm]."""
     interval_bounds: tuple[float, float] = config.INTERVAL_BOUNDS
-    """Bounds of each of the six knot intervals [s]."""
+    """Bounds of each knot interval [s] (n-control + 1 of them)."""
+    n_control: int = config.N_FREE
+    """Free control points of the quintic B-spline (1 to 64; the paper's 5): more points reach shorter times
+    and smoother plans, at more solve time."""
     select: Literal["compromise", "time", "smooth"] = "compromise"
     """Which point of the front (paper Table 4 types)."""
     weights: tuple[float, float] | None = None
@@ -416,7 +426,7 @@ class PlanArgs:
 PLAN_OPTIONS = {"weights": "--weights", "rate": "--rate", "method": "--method", "pop_size": "--pop",
                 "n_iter": "--iters", "seed": "--seed", "refine_steps": "--refine-steps", "n_front": "--n-front",
                 "start": "--start", "goal": "--goal", "arm_distance": "--arm-distance",
-                "interval_bounds": "--interval-bounds", "duration": "--duration"}
+                "interval_bounds": "--interval-bounds", "duration": "--duration", "n_control": "--n-control"}
 """The library's argument names of a plan and the options that give them."""
 
 
@@ -468,9 +478,10 @@ def plan(args: PlanArgs) -> int:
     try:
         check_options(weights, args.rate, args.method, args.pop, args.iters, args.seed, args.refine_steps,
                       args.n_front)
+        checks.integer("n_control", args.n_control, 1, config.MAX_CONTROL)
         if args.method != "direct":
-            check_memory(2 * args.pop * config.BYTES_PER_CANDIDATE, "--pop")
-        check_memory(config.N_INTERVALS * max(args.interval_bounds[1], 1.0) * args.rate * 8 * 100,
+            check_memory(2 * args.pop * config.candidate_bytes(args.n_control), "--pop")
+        check_memory((args.n_control + 1) * max(args.interval_bounds[1], 1.0) * args.rate * 8 * 100,
                      "--rate over the longest trajectory")
         check_out(args.out)
         # before any JAX computation (DockingProblem computes); the direct method solves one
@@ -478,7 +489,7 @@ def plan(args: PlanArgs) -> int:
         claim_devices(args.devices if args.devices is not None or args.method != "direct" else 1)
         extra = load_limits(args.limits) if args.limits is not None else {}
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
-                                 interval_bounds=args.interval_bounds, **extra)
+                                 interval_bounds=args.interval_bounds, n_control=args.n_control, **extra)
         check_move(problem)
         check_duration(problem, args.duration)
     except ValueError as exc:

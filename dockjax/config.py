@@ -62,10 +62,13 @@ def unit(joint: int, order: int = 0) -> str:
 N_INTERVALS = 6
 """Six knot intervals ``h_1..h_6`` (conventions §2)."""
 N_FREE = 5
-"""Five free control points ``d_3..d_7`` (conventions §2)."""
+"""Five free control points ``d_3..d_7`` (conventions §2): the paper's family and the default
+``n_control`` of :class:`dockjax.DockingProblem`."""
+MAX_CONTROL = 64
+"""Most free control points a problem takes (``n_control``, 1..64)."""
 N_POSE = 6
 N_JOINTS = 8
-N_VAR = N_INTERVALS + N_FREE * N_POSE  # 36
+N_VAR = N_INTERVALS + N_FREE * N_POSE  # 36, the paper's family
 N_CON = 3 * N_JOINTS  # 24
 
 # -- the paper's study (§5) and its presets -------------------------------------------------
@@ -99,8 +102,14 @@ RATE = 1000.0
 """Servo rate of a plan's samples (Hz)."""
 BYTES_PER_CANDIDATE = 16_384
 """A generous estimate of the working memory one candidate needs while a batch is scored
-(float64 kernel intermediates); the command lines refuse requests whose estimate exceeds
-the available memory."""
+(float64 kernel intermediates) of the paper's family; the command lines refuse requests whose
+estimate exceeds the available memory."""
+
+
+def candidate_bytes(n_control: int = N_FREE) -> float:
+    """:data:`BYTES_PER_CANDIDATE` for a spline of ``n_control`` free control points (the
+    kernel's intermediates grow with the ``n_control + 1`` spans)."""
+    return BYTES_PER_CANDIDATE * (n_control + 1) / N_INTERVALS
 MAX_RATE = 10_000.0
 """Highest servo rate a plan or a tracking simulation accepts (Hz)."""
 PLAN_REFINE_STEPS = 300

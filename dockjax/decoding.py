@@ -23,13 +23,15 @@ __all__ = ["decode", "span_angles", "spans"]
 def decode(problem: "DockingProblem", x):
     """Intervals, knots and span coefficients of one candidate.
 
-    x: (n_var,) → ``h`` (6,), ``u`` (17,), ``c`` (6 spans, 6 powers, 6 pose coordinates).
+    x: (n_var,) → ``h`` (s,), ``u`` (s + 11,), ``c`` (s spans, 6 powers, 6 pose coordinates),
+    with s = ``problem.n_intervals`` (6 in the paper).
     """
-    h = x[: config.N_INTERVALS]
+    s = problem.n_intervals
+    h = x[:s]
     if problem.reduced:
-        interior = bspline.line_control_points(problem.start, problem.goal).astype(x.dtype)
+        interior = bspline.line_control_points(problem.start, problem.goal, problem.n_control).astype(x.dtype)
     else:
-        interior = x[config.N_INTERVALS :].reshape(config.N_FREE, config.N_POSE)
+        interior = x[s:].reshape(problem.n_control, config.N_POSE)
     u = bspline.knots(h)
     ctrl = bspline.control_points(problem.start, problem.goal, interior)
     # Materialise: stops XLA from re-fusing (and so recomputing) the conversion into
@@ -40,15 +42,15 @@ def decode(problem: "DockingProblem", x):
 def span_angles(c, h):
     """Pitch and yaw (°) at the middle of each span with their sines and cosines.
 
-    c: (6, 6, 6), h: (6,) → (mid (6, 2), sin (6, 2), cos (6, 2)): the reference angles of
+    c: (s, 6, 6), h: (s,) → (mid (s, 2), sin (s, 2), cos (s, 2)): the reference angles of
     the expansions used for the right arm (one trig call per span and angle).
     """
-    mid = bspline.poly_eval(jnp.swapaxes(c[..., 3:5], 1, 2), 0.5 * h[:, None])  # (6, 2)
+    mid = bspline.poly_eval(jnp.swapaxes(c[..., 3:5], 1, 2), 0.5 * h[:, None])  # (s, 2)
     return mid, jnp.sin(_DEG * mid), jnp.cos(_DEG * mid)
 
 
 def spans(problem: "DockingProblem", x):
-    """What the kernels need of one candidate: ``h`` (6,), ``u`` (17,), ``c`` (6, 6, 6) of
+    """What the kernels need of one candidate: ``h`` (s,), ``u`` (s + 11,), ``c`` (s, 6, 6) of
     :func:`decode` and the reference angles ``ref`` of :func:`span_angles` (materialised:
     computed once for every consumer)."""
     h, u, c = decode(problem, x)

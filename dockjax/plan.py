@@ -150,7 +150,7 @@ def _shortest(problem: DockingProblem, x0=None) -> solve.Solution:
     (:func:`dockjax.solve.shortest`), from ``x0`` (default: the straight line at the
     shortest T the box allows, slowed until feasible)."""
     if x0 is None:
-        x0 = solve.straight_line(problem, [config.N_INTERVALS * problem.interval_bounds[0]])[0]
+        x0 = solve.straight_line(problem, [problem.n_intervals * problem.interval_bounds[0]])[0]
     sol = solve.shortest(problem, x0)
     if sol is None:
         raise solve.infeasibility(problem)
@@ -167,7 +167,7 @@ def _direct_front(problem: DockingProblem, n_front: int, shortest=None):
     """``(shortest, [least-jerk solutions at n_front caps up to the longest T])``, the front
     by continuation from the shortest-time solution (one SQP solve per cap)."""
     shortest = _shortest(problem) if shortest is None else shortest
-    caps = _caps(shortest.F[0], config.N_INTERVALS * problem.interval_bounds[1], n_front)
+    caps = _caps(shortest.F[0], problem.n_intervals * problem.interval_bounds[1], n_front)
     return shortest, solve.least_jerk_front(problem, shortest, caps, line=False, max_iter=FRONT_ITER, restarts=0)
 
 
@@ -182,7 +182,7 @@ def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
         raise PlanError.of_column(
             problem, int(jj), int(kk), f"no feasible trajectory found by {method}: the limit {{limit}} cannot be met "
             f"(best candidate exceeds it by {100 * G[jj, kk]:.1f} %; T is at most "
-            f"{config.N_INTERVALS * problem.interval_bounds[1]:g} s with interval bounds {problem.interval_bounds})",
+            f"{problem.n_intervals * problem.interval_bounds[1]:g} s with interval bounds {problem.interval_bounds})",
             excess=float(G[jj, kk]))
     F, X = res.F[0][m], res.X[0][m]
     F, idx = nondominated_points(F, return_index=True)
@@ -253,7 +253,7 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
                 vals.append(np.nan if other is None else float(other.F[objective]))
             row["finite_difference"] = (vals[0] - vals[1]) / (2 * FD_STEP * lim[j, k])
         rows.append(row)
-    h = np.asarray(sol.x[: config.N_INTERVALS])
+    h = np.asarray(sol.x[: problem.n_intervals])
     out = {"objective": "T_s" if time_optimal else "jerk", "binding": rows,
            "intervals_at_bounds": {"lower": int(np.sum(h <= problem.interval_bounds[0] * (1 + 1e-6))),
                                    "upper": int(np.sum(h >= problem.interval_bounds[1] * (1 - 1e-6)))},
@@ -285,10 +285,11 @@ def check_duration(problem: DockingProblem, duration) -> float | None:
     if duration is None:
         return None
     d = checks.vector("duration", [duration], (1,), positive=True)[0]
-    longest = config.N_INTERVALS * problem.interval_bounds[1]
+    longest = problem.n_intervals * problem.interval_bounds[1]
     if d > longest:
         raise ValueError(f"duration {d:g} s is longer than the longest T = {longest:g} s the interval bounds "
-                         f"{problem.interval_bounds} allow ({config.N_INTERVALS} intervals); widen the interval bounds")
+                         f"{problem.interval_bounds} allow ({problem.n_intervals} intervals); "
+                         "widen the interval bounds")
     return float(d)
 
 
@@ -416,8 +417,8 @@ def _of_duration(problem: DockingProblem, T: float, shortest: solve.Solution, fo
             starts = [sol.x]
         if sol is None or sol.F[0] > T:
             raise PlanError(f"the least-jerk solve at T = {T:.6g} s found no certified trajectory of that duration")
-    x = solve.time_scale(problem, sol.x, T / float(np.sum(sol.x[: config.N_INTERVALS])))
-    x[: config.N_INTERVALS] = np.minimum(x[: config.N_INTERVALS], problem.upper[: config.N_INTERVALS])
+    x = solve.time_scale(problem, sol.x, T / float(np.sum(sol.x[: problem.n_intervals])))
+    x[: problem.n_intervals] = np.minimum(x[: problem.n_intervals], problem.upper[: problem.n_intervals])
     F, G = problem.evaluate(x[None], screen=False)
     return dataclasses.replace(sol, x=x, F=F[0], G=G[0]), time_optimal
 
@@ -467,7 +468,7 @@ class Planner:
             self._template = np.array([shortest.x] + [s.x for s in front])
             solve.min_jerk(self.problem, front[0].x, float(front[0].F[0]), max_iter=self.max_iter)
             # samples are computed in buckets of lengths: one trajectory per bucket compiles them all
-            t_lo, t_hi = (config.N_INTERVALS * b for b in self.problem.interval_bounds)
+            t_lo, t_hi = (self.problem.n_intervals * b for b in self.problem.interval_bounds)
             for T in bucket_durations(t_lo, t_hi, self.rate):
                 self.problem.decode(solve.straight_line(self.problem, [T])[0]).sample(self.rate)
             self.plan(self.problem.start, self.problem.goal)  # compiles the replanning path once
@@ -486,7 +487,7 @@ class Planner:
         need = solve.scaling_need(G)
         ok = G.reshape(len(X), config.N_JOINTS, 3)[:, :, 0].max(1) <= 0
         X = np.array([solve.time_scale(problem, x, s * (1 + 1e-9)) for x, s in zip(X, need)])
-        ok &= np.all(X[:, : config.N_INTERVALS] <= problem.upper[: config.N_INTERVALS], 1)
+        ok &= np.all(X[:, : problem.n_intervals] <= problem.upper[: problem.n_intervals], 1)
         if not ok.any():
             return plan(problem, weights=w, rate=self.rate, n_front=self.n_front, check_sensitivities=False)
         Fs, _ = problem.evaluate(X)
@@ -549,7 +550,7 @@ def _write_plan_files(p: Plan, out: Path) -> list[Path]:
         "joints": p.margins(),
         "settings": {**p.settings, "start": p.problem.start.tolist(), "goal": p.problem.goal.tolist(),
                      "arm_distance": p.problem.arm_distance,
-                     "interval_bounds": list(p.problem.interval_bounds),
+                     "interval_bounds": list(p.problem.interval_bounds), "n_control": p.problem.n_control,
                      "limits": {q: p.problem.limits[:, k].tolist() for k, q in enumerate(config.QUANTITIES)},
                      "home": p.problem.home.tolist()},
     }

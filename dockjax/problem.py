@@ -71,8 +71,11 @@ class DockingProblem:
     * ``home``: (8,) joint home positions for the travel limits; default the midpoint of
       each joint's start and goal values.
     * ``margin``: relative margin of the control-point box (conventions §3).
-    * ``reduced``: if true, only the six intervals are free and ``d_3..d_7`` lie evenly
-      spaced on the segment from start to goal (conventions §3); ``n_var`` is then 6.
+    * ``n_control``: the number n of free control points (1 to 64; default 5, the paper's
+      ``d_3..d_7``). The spline then has n + 1 knot intervals and the decision vector is
+      ``[h_1..h_{n+1}, d_1..d_n]``, 7n + 1 numbers (conventions §2–3 for any n).
+    * ``reduced``: if true, only the n + 1 intervals are free and the n control points lie
+      evenly spaced on the segment from start to goal (conventions §3); ``n_var`` is then n + 1.
     * ``right_arm``: how the limits of the right arm's nonlinear joints are found; every
       treatment gives columns that are never below the true maxima:
 
@@ -101,7 +104,7 @@ class DockingProblem:
       (3 to 64); default None: 8, 12 or 24 from the box's range of pitch and yaw, enough
       for 1e-9 relative (:data:`dockjax.objectives.JERK_NODES`).
 
-    Attributes: ``n_var``, ``n_obj`` (2), ``n_con`` (24), ``lower``, ``upper`` (natural
+    Attributes: ``n_var``, ``n_intervals`` (n + 1), ``n_obj`` (2), ``n_con`` (24), ``lower``, ``upper`` (natural
     units, conventions §3 order), ``limits`` (8, 3), and the arguments in resolved form: ``start``,
     ``goal`` (6,), ``arm_distance``, ``interval_bounds`` (a pair of floats), ``travel``,
     ``velocity``, ``acceleration``, ``home`` (8,), ``margin``, ``reduced``, ``right_arm``
@@ -109,7 +112,7 @@ class DockingProblem:
 
     The problem is a JAX pytree (a frozen dataclass): its arrays and numbers are leaves,
     traced under ``jit`` (one compiled kernel serves every start, goal and limit), and
-    ``reduced``, ``right_arm`` and ``jerk_nodes`` are static.
+    ``n_control``, ``reduced``, ``right_arm`` and ``jerk_nodes`` are static.
     """
 
     n_obj: ClassVar[int] = 2
@@ -124,6 +127,7 @@ class DockingProblem:
     acceleration: Any = config.ACCELERATION
     home: Any = None
     margin: Any = config.MARGIN
+    n_control: int = static(config.N_FREE)
     reduced: bool = static(False)
     right_arm: str = static("auto")
     jerk_nodes: int | None = static(None)
@@ -136,6 +140,7 @@ class DockingProblem:
         if self.box is not None:  # rebuilt from its fields (jit, vmap, tree_map, replace)
             return
         set_ = partial(object.__setattr__, self)
+        set_("n_control", checks.integer("n_control", self.n_control, 1, config.MAX_CONTROL))
         start_a = checks.vector("start", self.start, (6,))
         goal_a = checks.vector("goal", self.goal, (6,))
         d2 = checks.vector("arm_distance", [self.arm_distance], (1,), positive=True)[0]
@@ -173,12 +178,12 @@ class DockingProblem:
                 and np.all(np.abs(np.concatenate([box_lo, box_hi])) < 1e12)):
             raise ValueError(f"margin {mg:g} makes the control-point box unbounded (|coordinates| >= 1e12); "
                              "give a smaller margin")
-        h_lo, h_hi = np.full(6, lo), np.full(6, hi)
+        h_lo, h_hi = np.full(self.n_intervals, lo), np.full(self.n_intervals, hi)
         if self.reduced:
             lower, upper = h_lo, h_hi
         else:
-            lower = np.concatenate([h_lo, np.tile(box_lo, config.N_FREE)])
-            upper = np.concatenate([h_hi, np.tile(box_hi, config.N_FREE)])
+            lower = np.concatenate([h_lo, np.tile(box_lo, self.n_control)])
+            upper = np.concatenate([h_hi, np.tile(box_hi, self.n_control)])
         for k, v in (("start", start_a), ("goal", goal_a), ("arm_distance", float(d2)),
                      ("interval_bounds", (float(lo), float(hi))), ("travel", travel), ("velocity", velocity),
                      ("acceleration", acceleration), ("home", home_a), ("margin", float(mg)),
@@ -227,6 +232,8 @@ class DockingProblem:
         for f in dataclasses.fields(self):
             if not f.init or f.name == "box":
                 continue
+            if f.name == "n_control" and self.n_control == config.N_FREE:
+                continue  # the paper's family: identities (and caches keyed on them) as before n_control
             v = getattr(self, f.name)
             out[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple, list)) else v
         return out
@@ -240,14 +247,21 @@ class DockingProblem:
 
     # -- public API ---------------------------------------------------------------------
     @property
+    def n_intervals(self) -> int:
+        """Knot intervals ``h_1..h_{n+1}`` of the spline: ``n_control + 1`` (6 in the paper)."""
+        return self.n_control + 1
+
+    @property
     def n_var(self) -> int:
-        return config.N_INTERVALS if self.reduced else config.N_VAR
+        """Length of the decision vector: ``n_intervals`` (+ 6 ``n_control`` unless reduced)."""
+        return self.n_intervals if self.reduced else self.n_intervals + config.N_POSE * self.n_control
 
     def __repr__(self) -> str:
         f = lambda a: "(" + ", ".join(f"{v:g}" for v in np.ravel(a)) + ")"  # noqa: E731
         return (
             f"DockingProblem(start={f(self.start)}, goal={f(self.goal)}, "
             f"arm_distance={self.arm_distance:g}, interval_bounds={self.interval_bounds}, "
+            f"{f'n_control={self.n_control}, ' if self.n_control != config.N_FREE else ''}"
             f"n_var={self.n_var}{', reduced' if self.reduced else ''})"
         )
 
@@ -261,8 +275,8 @@ class DockingProblem:
             raise ValueError(
                 f"X must be finite, got {arr[tuple(bad)]} at row {bad[0]}, column {bad[1]}"
             )
-        if np.any(arr[:, : config.N_INTERVALS] <= 0):
-            bad = np.argwhere(arr[:, : config.N_INTERVALS] <= 0)[0]
+        if np.any(arr[:, : self.n_intervals] <= 0):
+            bad = np.argwhere(arr[:, : self.n_intervals] <= 0)[0]
             raise ValueError(
                 f"X intervals h_k must be > 0, got {arr[tuple(bad)]} at row {bad[0]}, column {bad[1]}"
             )
@@ -323,7 +337,7 @@ class DockingProblem:
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise ValueError(f"X row {i} is outside the kernel's numeric range (its scores overflow in "
-                             f"{precision}: intervals {arr[i, :config.N_INTERVALS].tolist()}); keep intervals and "
+                             f"{precision}: intervals {arr[i, :self.n_intervals].tolist()}); keep intervals and "
                              "control points within a few orders of magnitude of the problem's box")
         return F, G
 
@@ -338,11 +352,11 @@ class DockingProblem:
         return Trajectory(self, arr)
 
 
-def make_problem(preset: str, right_arm: str = "auto") -> DockingProblem:
+def make_problem(preset: str, right_arm: str = "auto", n_control: int = config.N_FREE) -> DockingProblem:
     """The problem of a preset (:data:`dockjax.config.PRESETS`: ``"paper"`` or ``"wide"``);
-    ``right_arm`` as in :class:`DockingProblem`."""
+    ``right_arm`` and ``n_control`` as in :class:`DockingProblem`."""
     checks.choice("preset", preset, tuple(config.PRESETS))
-    return DockingProblem(**config.PRESETS[preset], right_arm=right_arm)
+    return DockingProblem(**config.PRESETS[preset], right_arm=right_arm, n_control=n_control)
 
 
 def _score(problem: DockingProblem, x, screen: bool = False):
@@ -434,7 +448,7 @@ def _full_chain_rows(problem: DockingProblem, spans):
 
     def rows(idx):
         vals, _ = extrema.span_maxima(series[idx], lengths[idx])  # (k, 48, 3)
-        M = vals.reshape(idx.shape[0], config.N_INTERVALS, -1, 3).max(axis=1) + extra[idx]
+        M = vals.reshape(idx.shape[0], problem.n_intervals, -1, 3).max(axis=1) + extra[idx]
         return columns(problem, M)
 
     return rows

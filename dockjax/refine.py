@@ -50,7 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from . import checks, config
+from . import checks
 from .decoding import spans
 from .limits import columns, maxima, maxima_screened
 from .objectives import jerk
@@ -115,10 +115,12 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
 
 def _project(U, width_h, cap, n_bisect: int = 60):
     """Euclidean projection of each row of U (n, d) onto
-    ``{0 ≤ u ≤ 1, Σ_k width_h[k] u[k] ≤ cap}`` (the first 6 columns carry the intervals).
+    ``{0 ≤ u ≤ 1, Σ_k width_h[k] u[k] ≤ cap}`` (the first ``len(width_h)`` columns carry the
+    intervals).
     cap (n,). ``u = clip(v − λ w, 0, 1)`` with λ ≥ 0 found by bisection."""
     U = jnp.clip(U, 0.0, 1.0)
-    v = U[:, : config.N_INTERVALS]
+    s = width_h.shape[0]
+    v = U[:, :s]
     total = lambda lam: jnp.sum(width_h * jnp.clip(v - lam[:, None] * width_h, 0.0, 1.0), 1)  # noqa: E731
     over = total(jnp.zeros(v.shape[0], v.dtype)) > cap
     hi = jnp.full(v.shape[0], 1.0 / jnp.min(width_h), v.dtype)  # λ at which every u is 0
@@ -132,7 +134,7 @@ def _project(U, width_h, cap, n_bisect: int = 60):
 
     lo, hi = jax.lax.fori_loop(0, n_bisect, body, (lo, hi))
     vh = jnp.clip(v - hi[:, None] * width_h, 0.0, 1.0)  # the upper end keeps Σ ≤ cap
-    return U.at[:, : config.N_INTERVALS].set(jnp.where(over[:, None], vh, v))
+    return U.at[:, :s].set(jnp.where(over[:, None], vh, v))
 
 
 # -- the polishing loop ---------------------------------------------------------------------
@@ -145,9 +147,9 @@ def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_b
     ``T ≤ cap_T`` and jerk < the incumbent)."""
     lo = jnp.asarray(problem.lower, U0.dtype)
     width = jnp.asarray(problem.upper, U0.dtype) - lo
-    width_h = width[: config.N_INTERVALS]
+    width_h = width[: problem.n_intervals]
     # Σ w_k u_k ≤ cap_u, a hair inside so that rounding never lifts T above the cap
-    cap_u = cap * (1.0 - 1e-12) - jnp.sum(lo[: config.N_INTERVALS])
+    cap_u = cap * (1.0 - 1e-12) - jnp.sum(lo[: problem.n_intervals])
     score_one = jax.vmap(objectives_safe, in_axes=(None, 0))
 
     def loss(U):
@@ -265,7 +267,7 @@ def refine(problem: DockingProblem, X, *, steps: int = 200, learning_rate: float
     if X.shape[0] == 0:
         raise ValueError("X must have at least one row")
     t0 = time.perf_counter()
-    T = X[:, : config.N_INTERVALS].sum(1)
+    T = X[:, : problem.n_intervals].sum(1)
     xb, fb, gb, found, nbad = polish(problem, X, T, steps=steps, learning_rate=learning_rate, penalty=penalty,
                                      margin=margin, rows=rows)
     found &= ~np.all(xb == X, 1)

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import bspline, config, extrema, kinematics
+from . import bspline, extrema, kinematics
 from .config import DEG as _DEG
 
 if TYPE_CHECKING:
@@ -274,20 +274,20 @@ def _taylor_pass(problem: "DockingProblem", c, h, levels):
     into ``2**levels[i, k]`` sub-spans (none where the level is −1); the sub-spans of all
     rows form one queue, scored :data:`TAYLOR_ROUND` at a time in a ``lax.while_loop``
     (so the trip count is the batch's total work, not its largest row's). → per span upper
-    bounds (n, 6, 3, 3) (0 where not cut) and per row lower bounds (n, 3, 3)."""
-    n = h.shape[0]
+    bounds (n, s, 3, 3) (0 where not cut) and per row lower bounds (n, 3, 3); s spans per row."""
+    n, s = h.shape
     dtype = c.dtype
     count = jnp.where(levels >= 0, jnp.left_shift(1, jnp.maximum(levels, 0)), 0).reshape(-1)  # (n·6,)
     ends = jnp.cumsum(count)
     total = ends[-1]
-    flat = lambda a: a.reshape((n * config.N_INTERVALS,) + a.shape[2:])  # noqa: E731
+    flat = lambda a: a.reshape((n * s,) + a.shape[2:])  # noqa: E731
     cf, hf = flat(c), flat(h)
 
     def body(carry):
         g, upper, lower = carry
         idx = g * TAYLOR_ROUND + jnp.arange(TAYLOR_ROUND, dtype=ends.dtype)
         valid = idx < total
-        item = jnp.minimum(jnp.searchsorted(ends, idx, side="right"), n * config.N_INTERVALS - 1)
+        item = jnp.minimum(jnp.searchsorted(ends, idx, side="right"), n * s - 1)
         k = jnp.maximum(count[item], 1)
         j = idx - (ends[item] - k)
         r = hf[item] / (2.0 * k.astype(dtype))
@@ -295,12 +295,12 @@ def _taylor_pass(problem: "DockingProblem", c, h, levels):
         up, low = _taylor_subspans(problem, cf[item], r, tc)
         up = jnp.where(valid[:, None, None], up, 0.0)
         low = jnp.where(valid[:, None, None], low, 0.0)
-        return g + 1, upper.at[item].max(up), lower.at[item // config.N_INTERVALS].max(low)
+        return g + 1, upper.at[item].max(up), lower.at[item // s].max(low)
 
-    init = (jnp.zeros((), ends.dtype), jnp.zeros((n * config.N_INTERVALS, 3, 3), dtype),
+    init = (jnp.zeros((), ends.dtype), jnp.zeros((n * s, 3, 3), dtype),
             jnp.zeros((n, 3, 3), dtype))
     _, upper, lower = jax.lax.while_loop(lambda carry: carry[0] * TAYLOR_ROUND < total, body, init)
-    return upper.reshape(n, config.N_INTERVALS, 3, 3), lower
+    return upper.reshape(n, s, 3, 3), lower
 
 
 def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None = None, active=None):

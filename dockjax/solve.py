@@ -51,14 +51,16 @@ __all__ = ["Solution", "PlanError", "candidate_limits", "critical_times", "strai
            "scaling_need", "scaling_needs", "sensitivities", "time_scale"]
 
 
-N_CANDIDATES = config.N_INTERVALS * 8 * 15
-"""Limit constraints of the programmes: 15 critical values per knot span and joint."""
+CRITICAL_VALUES = 15
+"""Limit constraints per knot span and joint: 6 travel, 5 velocity and 4 acceleration
+values at critical times (:func:`candidate_limits`); a problem has ``n_intervals × 8 × 15``
+(720 in the paper's family)."""
 
 
 @dataclass(frozen=True)
 class Solution:
     """One solved programme. ``x`` (n_var,) certified (kernel-feasible), ``F`` (2,) its
-    (T, jerk), ``G`` (24,) its kernel columns; ``multipliers`` (6, 24) the Lagrange
+    (T, jerk), ``G`` (24,) its kernel columns; ``multipliers`` (n_intervals, 8, 15) the Lagrange
     multipliers of the span constraints at the solver's point (objective scaled as in
     ``objective_scale``), ``scaled`` the time scaling applied to certify (1.0: none),
     ``cap_multiplier`` that of the time cap (jerk programme; ``d jerk*/d T = −scale · it``),
@@ -92,7 +94,7 @@ def critical_times(problem: DockingProblem, x):
 
 
 def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
-    """The limit constraints at every critical time, x (n_var,) → (6 spans, 8 joints, 15).
+    """The limit constraints at every critical time, x (n_var,) → (s spans, 8 joints, 15).
 
     Per span and joint: the travel at the span's ends and the roots of the velocity (6
     values), the velocity at the ends and the roots of the acceleration (5), the
@@ -106,12 +108,12 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
     L = problem.limits if limits is None else limits
     times = critical_times(problem, x) if times is None else times
     h, _, c, ref = spans(problem, x)
-    polys = materialize(joint_series(problem, c, h, ref))  # (6, 8, 6)
+    polys = materialize(joint_series(problem, c, h, ref))  # (s, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     vals = [poly_eval(poly_derivative(polys, k)[..., None, :] if k else polys[..., None, :],
                       jnp.where(end, hh[..., None], jax.lax.stop_gradient(t)))
             for k, (t, end) in enumerate(times)]
-    rem = linearisation_remainders(problem, c, h, ref)  # (6, 3, 3)
+    rem = linearisation_remainders(problem, c, h, ref)  # (s, 3, 3)
     extra = jnp.zeros(polys.shape[:2] + (3,), polys.dtype).at[:, 4:7].set(rem)
     out = [(v / L[:, k, None]) ** 2 - (1.0 - extra[..., k, None] / L[:, k, None]) ** 2 for k, v in enumerate(vals)]
     return jnp.concatenate(out, -1)
@@ -133,12 +135,13 @@ def _x_of(problem, u):
 @jax.jit
 def _values(problem, u, scale, time_weight):
     """Objective ``(w T + (1 − w) jerk) / scale`` (w = ``time_weight``, 1 or 0: one compiled
-    programme serves both programmes), its gradient, the constraints (720,) and their
-    Jacobian (720, d), in the unit-box coordinates u."""
+    programme serves both programmes), its gradient, the constraints
+    (n_intervals · 120,; 720 in the paper) and their Jacobian (·, d), in the unit-box
+    coordinates u."""
 
     def f(u):
         x = _x_of(problem, u)
-        return (time_weight * jnp.sum(x[: config.N_INTERVALS]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
+        return (time_weight * jnp.sum(x[: problem.n_intervals]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
 
     times = critical_times(problem, _x_of(problem, u))  # held: the root searches are not differentiated
 
@@ -162,7 +165,7 @@ def _scores(problem, x):
 def time_scale(problem: DockingProblem, x, s: float) -> np.ndarray:
     """``x`` with every interval multiplied by ``s`` (the same path, ``s`` times slower)."""
     x = np.array(x, np.float64)
-    x[: config.N_INTERVALS] *= s
+    x[: problem.n_intervals] *= s
     return x
 
 
@@ -208,7 +211,7 @@ def infeasibility(problem: DockingProblem) -> PlanError:
     """Why no trajectory of the decision box meets the limits: the limit that the straight
     line (the move's natural candidate) misses even slowed as far as the interval bounds
     allow, as a :class:`PlanError`."""
-    x = straight_line(problem, [config.N_INTERVALS * problem.interval_bounds[1]])[0]
+    x = straight_line(problem, [problem.n_intervals * problem.interval_bounds[1]])[0]
     F, G = problem.evaluate(x[None])
     G3 = G[0].reshape(config.N_JOINTS, 3)
     if G3[:, 0].max() > 0:
@@ -241,7 +244,7 @@ def certify_scaling(problem: DockingProblem, x, max_rounds: int = 8):
         step = float(scaling_need(G)) * (1.0 + 1e-9)
         s *= step
         x = time_scale(problem, x, step)
-        if np.any(x[: config.N_INTERVALS] > problem.upper[: config.N_INTERVALS]):
+        if np.any(x[: problem.n_intervals] > problem.upper[: problem.n_intervals]):
             return None
         F, G = _scores(problem, x)
     return (x, F, G, s) if np.all(G <= 0) else None
@@ -255,7 +258,8 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS):
     lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
     width = hi - lo
     u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, 1.0)
-    n = config.N_INTERVALS
+    n = problem.n_intervals
+    n_candidates = n * config.N_JOINTS * CRITICAL_VALUES
     cache = {}
 
     def values(u):
@@ -285,9 +289,9 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS):
         u0 = np.clip(res.x, 0.0, 1.0)
     res.nit = nit
     m = np.asarray(getattr(res, "multipliers", np.zeros(0)), np.float64).ravel()
-    mult = m[:N_CANDIDATES] if m.size >= N_CANDIDATES else np.zeros(N_CANDIDATES)
-    cap_mult = float(m[N_CANDIDATES]) if cap is not None and m.size > N_CANDIDATES else 0.0
-    return lo + np.clip(res.x, 0.0, 1.0) * width, res, (mult.reshape(n, 8, 15), cap_mult)
+    mult = m[:n_candidates] if m.size >= n_candidates else np.zeros(n_candidates)
+    cap_mult = float(m[n_candidates]) if cap is not None and m.size > n_candidates else 0.0
+    return lo + np.clip(res.x, 0.0, 1.0) * width, res, (mult.reshape(n, config.N_JOINTS, CRITICAL_VALUES), cap_mult)
 
 
 SCALED_OK = 1e-7
@@ -335,7 +339,7 @@ def min_time(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     start = certify_scaling(problem, x0)
     if start is not None:
         x0 = start[0]
-    scale = float(np.sum(np.asarray(x0)[: config.N_INTERVALS]))
+    scale = float(np.sum(np.asarray(x0)[: problem.n_intervals]))
     return _solve(problem, x0, "time", None, scale, tol, max_iter, restarts)
 
 
@@ -391,12 +395,14 @@ def sensitivities(problem: DockingProblem, sol: Solution) -> np.ndarray:
 
 def straight_line(problem: DockingProblem, T) -> np.ndarray:
     """Decision vectors (len(T), n_var) of straight-line trajectories with equal intervals
-    ``T/6`` (interior control points evenly spaced from start to goal, conventions §3)."""
+    ``T/(n + 1)`` (the n interior control points evenly spaced from start to goal,
+    conventions §3)."""
     T = np.atleast_1d(np.asarray(T, dtype=np.float64))
-    h = np.repeat(T[:, None] / config.N_INTERVALS, config.N_INTERVALS, 1)
+    s = problem.n_intervals
+    h = np.repeat(T[:, None] / s, s, 1)
     if problem.reduced:
         return h
-    i = np.arange(1, config.N_FREE + 1)[:, None] / 6.0
+    i = np.arange(1, problem.n_control + 1)[:, None] / float(s)
     free = (problem.start + i * (problem.goal - problem.start)).ravel()
     return np.concatenate([h, np.tile(free, (T.size, 1))], 1)
 
@@ -455,9 +461,12 @@ def map_to(problem: DockingProblem, template: DockingProblem, X) -> np.ndarray:
         return X.copy()
     s0, d0 = np.asarray(template.start), np.asarray(template.goal) - np.asarray(template.start)
     s1, d1 = np.asarray(problem.start), np.asarray(problem.goal) - np.asarray(problem.start)
-    n = config.N_INTERVALS
-    P = X[:, n:].reshape(len(X), config.N_FREE, config.N_POSE)
-    frac = (np.arange(1, config.N_FREE + 1) / 6.0)[:, None]
+    n = problem.n_intervals
+    if template.n_control != problem.n_control:
+        raise ValueError(f"map_to needs problems of one spline family: template has n_control="
+                         f"{template.n_control}, problem {problem.n_control}")
+    P = X[:, n:].reshape(len(X), problem.n_control, config.N_POSE)
+    frac = (np.arange(1, problem.n_control + 1) / float(n))[:, None]
     moves = np.abs(d0) > 1e-12 * np.maximum(1.0, np.abs(s0))
     ratio = np.where(moves, d1 / np.where(moves, d0, 1.0), 1.0)
     Q = np.where(moves, s1 + (P - s0) * ratio, s1 + (P - s0) + frac * (d1 - d0))

@@ -63,8 +63,7 @@ def bucket_durations(t_lo: float, t_hi: float, rate: float) -> list[float]:
 def _jets_at(problem: "DockingProblem", x, t):
     """Pose jets (m, 6, 4) and joint jets (m, 8, 4) at times t (m,), orders 0..3."""
     h, u, c = decode(problem, x)
-    inner = u[bspline.DEGREE + 1 : bspline.DEGREE + bspline.N_SPANS]
-    k = jnp.searchsorted(inner, t, side="right")
+    k = jnp.searchsorted(bspline.interior_knots(u), t, side="right")
     tau = t - u[bspline.DEGREE + k]
     pose = bspline.poly_taylor(jnp.swapaxes(c[k], 1, 2), tau[:, None], 3)  # (m, 6, 4)
     px, py, pz, pa, pb, pg = (pose[:, i] for i in range(6))  # stacked jets (m, 4)
@@ -76,23 +75,23 @@ def _jets_at(problem: "DockingProblem", x, t):
 class Trajectory:
     """The trajectory of one candidate (use :meth:`DockingProblem.decode`).
 
-    Attributes: ``x`` (n_var,), ``T`` (s), ``intervals`` (6,), ``knots`` (17,),
-    ``control_points`` (11, 6), ``problem``.
+    Attributes: ``x`` (n_var,), ``T`` (s), ``intervals`` (n + 1,), ``knots`` (n + 12,),
+    ``control_points`` (n + 6, 6), ``problem``; n = ``problem.n_control`` (5 in the paper).
     """
 
     def __init__(self, problem: "DockingProblem", x: np.ndarray):
         self.problem = problem
         self.x = np.asarray(x, dtype=np.float64)
-        self.intervals = self.x[: config.N_INTERVALS].copy()
+        self.intervals = self.x[: problem.n_intervals].copy()
         self.T = float(np.sum(self.intervals))
         self.knots = np.concatenate(
             [np.zeros(6), np.cumsum(self.intervals)[:-1], np.full(6, self.T)]
         )
         if problem.reduced:
             with jax.enable_x64(True):
-                interior = np.asarray(bspline.line_control_points(problem.start, problem.goal))
+                interior = np.asarray(bspline.line_control_points(problem.start, problem.goal, problem.n_control))
         else:
-            interior = self.x[config.N_INTERVALS :].reshape(config.N_FREE, config.N_POSE)
+            interior = self.x[problem.n_intervals :].reshape(problem.n_control, config.N_POSE)
         self.control_points = np.concatenate(
             [np.tile(problem.start, (3, 1)), interior, np.tile(problem.goal, (3, 1))]
         )

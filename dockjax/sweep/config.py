@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from .. import config
+from .. import checks, config
 from ..algorithms import get, make_params
 from ..io import check_input_file, load_npz
 from ..metrics import nondominated_points
@@ -65,19 +65,23 @@ class SweepConfig:
     driver: str = "scan"
     """:func:`dockjax.optimize.optimize`'s driver: ``"scan"`` (fastest per iteration) or
     ``"host"`` (every algorithm shares the kernel's compilation: ``dockjax compare``)."""
+    n_control: int = config.N_FREE
+    """Free control points of the problem's spline (:class:`dockjax.DockingProblem`'s
+    ``n_control``), written into the identity only when it is not the paper's 5."""
 
     def identity(self) -> dict:
         return {"format": FORMAT, "preset": self.preset, "settings": [s.identity() for s in self.settings],
                 "seeds": self.seeds, "chunk": self.chunk, "reference": self.reference, "devices": self.devices,
                 "driver": self.driver, "race": self.race, "hv_ref": config.HV_REFERENCE,
-                "normalisation": "ideal and nadir of reference.npz's front"}
+                "normalisation": "ideal and nadir of reference.npz's front",
+                **({"n_control": self.n_control} if self.n_control != config.N_FREE else {})}
 
     @classmethod
     def from_identity(cls, d: dict) -> "SweepConfig":
         """The configuration of a stored identity (``config.json``'s ``identity``)."""
         return cls(settings=tuple(Setting.from_identity(s) for s in d["settings"]), preset=d["preset"],
                    seeds=int(d["seeds"]), chunk=int(d["chunk"]), reference=d["reference"], race=d["race"],
-                   devices=d["devices"], driver=d["driver"])
+                   devices=d["devices"], driver=d["driver"], n_control=int(d.get("n_control", config.N_FREE)))
 
     @property
     def algorithms(self) -> list[str]:
@@ -108,6 +112,8 @@ class ChunkSpec:
     refine_rows: int | None = None
     """Rows per compiled call of the memetic finish (shared with the reference's)."""
     driver: str = "scan"
+    n_control: int = config.N_FREE
+    """Free control points of the problem's spline."""
 
     def params(self) -> Any:
         """The algorithm's ``Params`` of the chunk: every hyper-parameter the settings name
@@ -168,7 +174,7 @@ def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds:
                                     seeds=tuple(s for _, s in padded),
                                     hyper=tuple(cfg.settings[i].params for i, _ in padded), n_real=len(real),
                                     refine_steps=refine_steps, refine_rows=rows if refine_steps else None,
-                                    driver=cfg.driver))
+                                    driver=cfg.driver, n_control=cfg.n_control))
     return chunks
 
 
@@ -182,7 +188,8 @@ def pilot_spec(cfg: SweepConfig) -> ChunkSpec:
     return ChunkSpec(round=-1, index=0, preset=cfg.preset, algorithm=first.algorithm, pop=pop, iters=iters,
                      settings=(-1,) * size, seeds=tuple(PILOT_SEED0 + i for i in range(size)),
                      hyper=((),) * size, n_real=size, refine_steps=first.refine_steps,
-                     refine_rows=refine_rows(cfg) if first.refine_steps else None, driver=cfg.driver)
+                     refine_rows=refine_rows(cfg) if first.refine_steps else None, driver=cfg.driver,
+                     n_control=cfg.n_control)
 
 
 REFINE_ROWS = 256
@@ -287,7 +294,7 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
                 refine_steps: int = 0, chunk: int = config.SWEEP_CHUNK, reference: str = "best-known",
                 reference_front=None, race: bool = False, race_min_seeds: int = 5, race_alpha: float = 0.05,
                 devices: int | None = None, best_known: dict | None = None,
-                driver: str = "scan") -> tuple[SweepConfig, np.ndarray | None]:
+                driver: str = "scan", n_control: int = config.N_FREE) -> tuple[SweepConfig, np.ndarray | None]:
     """Validate a sweep (nothing is written, nothing is compiled) and build its
     configuration. ``reference``: ``"best-known"`` (default; ``best_known`` overrides
     settings of :data:`dockjax.config.BEST_KNOWN`), ``"pilot"`` or ``"file"``
@@ -308,6 +315,10 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
     errors += size_errors(algorithms, params, pop, iters, budget, samples, seeds, chunk)
     if preset not in config.PRESETS:
         errors.append(f"--preset must be one of {', '.join(config.PRESETS)}, got {preset!r}")
+    try:
+        checks.integer("--n-control", n_control, 1, config.MAX_CONTROL)
+    except ValueError as exc:
+        errors.append(str(exc))
     if driver not in ("scan", "host"):
         errors.append(f"driver must be 'scan' or 'host', got {driver!r}")
     if not pop:
@@ -363,5 +374,5 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
         raise ConfigError("; ".join(errors))
     cfg = SweepConfig(settings=tuple(settings), preset=preset, seeds=seeds, chunk=chunk, reference=ref,
                       race={"min_seeds": race_min_seeds, "alpha": race_alpha} if race else None,
-                      devices=devices, driver=driver)
+                      devices=devices, driver=driver, n_control=int(n_control))
     return cfg, front

@@ -12,7 +12,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from .. import metrics
+from .. import config, metrics
 from ..metrics import nondominated_points
 from ..optimize import optimize, refine_result
 from ..problem import make_problem
@@ -23,9 +23,10 @@ __all__ = ["run_chunk", "problem_of", "LocalBackend", "DaskBackend"]
 
 
 @lru_cache(maxsize=None)
-def problem_of(preset: str):
-    """The problem of a preset (:func:`dockjax.problem.make_problem`), made once per process."""
-    return make_problem(preset)
+def problem_of(preset: str, n_control: int = config.N_FREE):
+    """The problem of a preset with ``n_control`` free control points
+    (:func:`dockjax.problem.make_problem`), made once per process."""
+    return make_problem(preset, n_control=n_control)
 
 
 def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | None = None
@@ -47,7 +48,7 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
         ideal, nadir = np.asarray(reference["ideal"]), np.asarray(reference["nadir"])
         span = np.where(nadir > ideal, nadir - ideal, 1.0)
         hv_ref, scale = ideal + float(reference["hv_ref"]) * span, float(np.prod(span))
-    problem = problem_of(spec.preset)
+    problem = problem_of(spec.preset, spec.n_control)
     r = optimize(spec.algorithm, problem, params=spec.params(), seeds=np.asarray(spec.seeds, np.int64),
                  n_iter=spec.iters, hv_ref=hv_ref, driver=spec.driver, devices=devices)
     if spec.refine_steps:

@@ -22,7 +22,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .. import config, metrics, plots, select
+from .. import checks, config, metrics, plots, select
 from ..algorithms import get
 from ..io import atomic_write_text
 from .config import ConfigError, SweepConfig, size_errors
@@ -42,13 +42,13 @@ PAPER_TYPES = ("compromise", "time", "smooth")
 def paper_config(preset: str = "paper", *, seeds: int = config.N_SEEDS, pop: int = config.POP_SIZE,
                  iters: int = config.N_ITER, algorithms: Sequence[str] = PAPER_ALGORITHMS,
                  refine_steps: int = config.MEMETIC_STEPS, best_known: dict | None = None,
-                 devices: int | None = None) -> SweepConfig:
+                 devices: int | None = None, n_control: int = config.N_FREE) -> SweepConfig:
     """The comparison of ``algorithms`` on ``preset`` as a study configuration: every
     algorithm at its default hyper-parameters, ``seeds`` runs each in one chunk, and with
     ``refine_steps`` > 0 an "IMOCS + refine" setting (IMOCS's runs, each final population
     polished by that many steps of gradient refinement). The reference is the best-known
-    front (``best_known`` overrides :data:`dockjax.config.BEST_KNOWN`). Raises ConfigError
-    naming the option."""
+    front (``best_known`` overrides :data:`dockjax.config.BEST_KNOWN`); ``n_control`` the
+    problem's free control points. Raises ConfigError naming the option."""
     errors = [f"--{name} must be >= {lo}, got {v}" for name, v, lo in (
         ("seeds", seeds, 1), ("pop", pop, 4), ("iters", iters, 1), ("refine-steps", refine_steps, 0)) if v < lo]
     errors += [f"--{name} {v} is too large (at most {hi})" for name, v, hi in (
@@ -57,6 +57,8 @@ def paper_config(preset: str = "paper", *, seeds: int = config.N_SEEDS, pop: int
     if not errors:
         errors += size_errors(list(algorithms) + ["imocs"] * bool(refine_steps), [], (pop,), (iters,), None, 0, seeds,
                                seeds)
+    if not (checks.is_integer(n_control) and 1 <= n_control <= config.MAX_CONTROL):
+        errors.append(f"--n-control must be an integer from 1 to {config.MAX_CONTROL}, got {n_control!r}")
     if preset not in config.PRESETS:
         errors.append(f"--presets: {preset!r} is not one of {', '.join(config.PRESETS)}")
     try:
@@ -80,7 +82,8 @@ def paper_config(preset: str = "paper", *, seeds: int = config.N_SEEDS, pop: int
     if refine_steps and "imocs" in names:
         settings.append(Setting("imocs", pop, iters, (), refine_steps))
     return SweepConfig(settings=tuple(settings), preset=preset, seeds=seeds, chunk=seeds,
-                       reference={"kind": "best-known", **best}, devices=devices, driver="host")
+                       reference={"kind": "best-known", **best}, devices=devices, driver="host",
+                       n_control=int(n_control) if checks.is_integer(n_control) else config.N_FREE)
 
 
 def median_run(study: Study, setting: int) -> int:
@@ -102,7 +105,7 @@ def _chosen(study: Study, run: int) -> dict[str, dict]:
     """The three trajectories of Table 4 from one run's front, with every joint's maximum
     |travel|, |velocity| and |acceleration| (the kernel's columns with every span through
     the root chain: exact, never understated)."""
-    problem = problem_of(study.cfg.preset)
+    problem = problem_of(study.cfg.preset, study.cfg.n_control)
     F, X = study.fronts[run], study.fronts_X[run]
     out = {}
     for kind in PAPER_TYPES:
@@ -123,7 +126,7 @@ def paper_tables(study: Study, out: Path, log: Callable[[str], None] = print) ->
     ``left_arm_xyz.png``, ``joints.png`` and ``convergence.png`` into ``out``; returns the
     lines of ``report.md``'s section and the files."""
     cfg, cols = study.cfg, study.cols
-    problem = problem_of(cfg.preset)
+    problem = problem_of(cfg.preset, cfg.n_control)
     ref = study.ref["front"]
     hv_front = metrics.indicators(ref, None, ref, hv_ref=float(study.ref["hv_ref"]))["HV"]
     files: list[Path] = []

@@ -50,7 +50,7 @@ def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backe
         settings = {k: cfg.reference[k] for k in config.BEST_KNOWN}
         # with memetic settings, the front's polishing shares their compiled shape
         rows = refine_rows(cfg) if any(s.refine_steps for s in cfg.settings) else None
-        best = best_known_cached(problem_of(cfg.preset), cache, log=log, rows=rows, **settings)
+        best = best_known_cached(problem_of(cfg.preset, cfg.n_control), cache, log=log, rows=rows, **settings)
         front, idx = nondominated_points(best.F, return_index=True)
         extra["X"] = best.X[idx]
     elif kind == "pilot":
