@@ -254,11 +254,15 @@ RESTARTS = 3
 """Fresh SLSQP starts from the last point when a solve ends without converging."""
 
 
-def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS):
+def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room=0.0):
+    """SLSQP in the unit box; ``room`` > 0 keeps the intervals that far (unit-box units) below
+    their upper bounds, so that the certificate's time scaling fits inside the box."""
     lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
     width = hi - lo
-    u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, 1.0)
     n = problem.n_intervals
+    top = np.ones_like(width)
+    top[:n] -= room
+    u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, top)
     n_candidates = n * config.N_JOINTS * CRITICAL_VALUES
     cache = {}
 
@@ -281,18 +285,22 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS):
     nit = 0
     for _ in range(1 + restarts):  # a restart renews SLSQP's curvature estimate
         res = minimize(lambda u: values(u)[0], u0, jac=lambda u: values(u)[1], method="SLSQP",
-                       bounds=[(0.0, 1.0)] * len(u0), constraints=cons,
+                       bounds=list(zip(np.zeros_like(top), top)), constraints=cons,
                        options={"maxiter": int(max_iter), "ftol": tol})
         nit += int(res.nit)
         if res.success:
             break
-        u0 = np.clip(res.x, 0.0, 1.0)
+        u0 = np.clip(res.x, 0.0, top)
     res.nit = nit
     m = np.asarray(getattr(res, "multipliers", np.zeros(0)), np.float64).ravel()
     mult = m[:n_candidates] if m.size >= n_candidates else np.zeros(n_candidates)
     cap_mult = float(m[n_candidates]) if cap is not None and m.size > n_candidates else 0.0
-    return lo + np.clip(res.x, 0.0, 1.0) * width, res, (mult.reshape(n, config.N_JOINTS, CRITICAL_VALUES), cap_mult)
+    return lo + np.clip(res.x, 0.0, top) * width, res, (mult.reshape(n, config.N_JOINTS, CRITICAL_VALUES), cap_mult)
 
+
+INTERVAL_ROOM = 1e-6
+"""Room (unit-box units) kept below the intervals' upper bounds when a solve is repeated because
+the certificate's time scaling did not fit inside the box."""
 
 SCALED_OK = 1e-7
 """A solver point whose certifying time scaling exceeds ``1 + SCALED_OK`` is solved again
@@ -315,9 +323,16 @@ def _solve(problem, x0, kind, cap, scale, tol, max_iter, restarts):
     :data:`SCALED_OK` (SLSQP stopped slightly outside the limits), up to ``restarts`` new
     solves from the slowed, feasible trajectory. The best certified answer is returned."""
     best, k = None, 0 if kind == "time" else 1
+    room = 0.0
     for _ in range(1 + restarts):
-        x, res, mult = _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts)
+        x, res, mult = _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts, room)
         sol = _finish(problem, x, res, mult, scale)
+        if sol is None and best is None and room == 0.0:
+            # the certificate's time scaling (a hair, for the solver's tolerance) would push an
+            # interval at its upper bound out of the box: solve again with room below it
+            room = INTERVAL_ROOM
+            x, res, mult = _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts, room)
+            sol = _finish(problem, x, res, mult, scale)
         if sol is None:
             break
         if best is None or sol.F[k] < best.F[k]:

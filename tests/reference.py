@@ -8,7 +8,9 @@ local refinement around the largest sample. Tests compare ``dockjax`` with this 
 later issues call :func:`dense_feasible` "the dense check" to certify optimiser results.
 
 Units: seconds, millimetres, degrees (radians only inside trig calls).
-Decision vector (conventions §3): ``x = [h_1..h_6, d_3[0..5], …, d_7[0..5]]`` (36,).
+Decision vector (conventions §3): ``x = [h_1..h_6, d_3[0..5], …, d_7[0..5]]`` (36,) in the
+paper's family; with n free control points ``[h_1..h_{n+1}, d_1, …, d_n]`` (7n + 1,), so the
+number of intervals s of a full vector follows from its length, ``(len + 6) / 7``.
 Joint order (conventions §4): ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``.
 Limits are per arm joint ``(axial, lift, lateral, roll)``, length 4 (both arms) or 8.
 """
@@ -51,6 +53,13 @@ __all__ = [
 ]
 
 
+def n_intervals_of(x) -> int:
+    """Knot intervals s of a full decision vector of length 7s − 6."""
+    size = np.asarray(x).shape[-1]
+    assert (size + 6) % 7 == 0, size
+    return (size + 6) // 7
+
+
 def _as_pose(p) -> np.ndarray:
     p = np.asarray(p, dtype=np.float64).reshape(-1)
     assert p.shape == (N_POSE,), p.shape
@@ -65,17 +74,18 @@ def knots(h) -> np.ndarray:
 
 
 def control_points(x, start, goal) -> np.ndarray:
-    """Control points ``d_0..d_10`` (11, 6): start ×3, the five free points, goal ×3."""
+    """Control points (n + 6, 6): start ×3, the n free points, goal ×3 (``d_0..d_10`` for n = 5)."""
     x = np.asarray(x, dtype=np.float64)
     start, goal = _as_pose(start), _as_pose(goal)
-    free = x[N_INTERVALS:].reshape(N_FREE, N_POSE)
+    s = n_intervals_of(x)
+    free = x[s:].reshape(s - 1, N_POSE)
     return np.vstack([np.tile(start, (3, 1)), free, np.tile(goal, (3, 1))])
 
 
 def pose_spline(x, start, goal) -> BSpline:
     """The pose trajectory as one vector-valued degree-5 ``scipy`` B-spline."""
     x = np.asarray(x, dtype=np.float64)
-    return BSpline(knots(x[:N_INTERVALS]), control_points(x, start, goal), DEGREE)
+    return BSpline(knots(x[:n_intervals_of(x)]), control_points(x, start, goal), DEGREE)
 
 
 def pose_derivatives(x, start, goal, t, max_order: int = 3) -> np.ndarray:
@@ -173,24 +183,26 @@ def expand_limits(travel, velocity, acceleration) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-def reference_bounds(start, goal, interval_bounds=(3.5, 10.0), margin: float = 0.1):
-    """Box ``(lower, upper)`` (36,) each, per conventions §3."""
+def reference_bounds(start, goal, interval_bounds=(3.5, 10.0), margin: float = 0.1, n_free: int = N_FREE):
+    """Box ``(lower, upper)`` (7 n_free + 1,) each (36 in the paper), per conventions §3."""
     start, goal = _as_pose(start), _as_pose(goal)
     delta = goal - start
     m = np.where(delta == 0.0, ZERO_MOVE_MARGIN, margin * np.abs(delta))
     lo_p = np.minimum(start, goal) - m
     hi_p = np.maximum(start, goal) + m
-    lo = np.concatenate([np.full(N_INTERVALS, float(interval_bounds[0])), np.tile(lo_p, N_FREE)])
-    hi = np.concatenate([np.full(N_INTERVALS, float(interval_bounds[1])), np.tile(hi_p, N_FREE)])
+    lo = np.concatenate([np.full(n_free + 1, float(interval_bounds[0])), np.tile(lo_p, n_free)])
+    hi = np.concatenate([np.full(n_free + 1, float(interval_bounds[1])), np.tile(hi_p, n_free)])
     return lo, hi
 
 
 def reduced_to_full(h, start, goal) -> np.ndarray:
-    """Full x (36,) of the reduced setting: d_{2+i} = start + i/6 (goal − start), i = 1..5."""
+    """Full x of the reduced setting from its s intervals h: the s − 1 free points at
+    start + i/s (goal − start), i = 1..s − 1 (the paper: s = 6, x (36,))."""
     start, goal = _as_pose(start), _as_pose(goal)
-    i = np.arange(1, N_FREE + 1)[:, None] / 6.0
+    h = np.asarray(h, dtype=np.float64).reshape(-1)
+    i = np.arange(1, len(h))[:, None] / float(len(h))
     free = start + i * (goal - start)
-    return np.concatenate([np.asarray(h, dtype=np.float64).reshape(N_INTERVALS), free.ravel()])
+    return np.concatenate([h, free.ravel()])
 
 
 def straight_line_x(start, goal, h=(10.0,) * 6) -> np.ndarray:
@@ -205,7 +217,7 @@ def reference_objectives(x, start, goal, arm_distance: float, nodes: int = 20):
     polynomial joints, converged to round-off for the right arm's trig joints).
     """
     x = np.asarray(x, dtype=np.float64)
-    h = x[:N_INTERVALS]
+    h = x[:n_intervals_of(x)]
     T = float(np.sum(h))
     edges = np.concatenate([[0.0], np.cumsum(h)])
     edges[-1] = knots(h)[-1]
@@ -228,7 +240,7 @@ def dense_quantity_maxima(
     (the result never exceeds the true maximum and is within round-off of it).
     """
     x = np.asarray(x, dtype=np.float64)
-    kn = knots(x[:N_INTERVALS])
+    kn = knots(x[:n_intervals_of(x)])
     T = kn[-1]
     t = np.union1d(np.linspace(0.0, T, int(n_samples)), kn)
     if home is None:
@@ -306,7 +318,7 @@ def dense_check(problem, X, n_samples: int = 20001):
     goal = np.asarray(problem.goal, dtype=np.float64)
     G = []
     for x in X:
-        if x.shape == (N_INTERVALS,):
+        if getattr(problem, "reduced", x.shape == (N_INTERVALS,)):
             x = reduced_to_full(x, start, goal)
         G.append(
             dense_constraints(

@@ -60,7 +60,7 @@ def dense_bracket(p: DockingProblem, x, n_samples: int = N_DENSE):
     docstring). Uses only the problem's data (start, goal, D2, limits, home)."""
     x = np.asarray(x, dtype=np.float64)
     start, goal, d2, home = p.start, p.goal, p.arm_distance, p.home
-    kn = R.knots(x[:6])
+    kn = R.knots(x[:R.n_intervals_of(x)])
     T = kn[-1]
     t = np.union1d(np.linspace(0.0, T, n_samples), kn)
     qd = R.joint_derivatives(x, start, goal, d2, t)  # (4, m, 8)
@@ -74,9 +74,9 @@ def dense_bracket(p: DockingProblem, x, n_samples: int = N_DENSE):
 
 
 @functools.lru_cache(maxsize=None)
-def _problems(start, goal, d2, bounds, travel):
+def _problems(start, goal, d2, bounds, travel, n_control=5):
     kw = dict(start=start, goal=goal, arm_distance=d2, interval_bounds=bounds, travel=travel,
-              jerk_nodes=JERK_NODES)
+              jerk_nodes=JERK_NODES, n_control=n_control)
     auto = DockingProblem(**kw)
     return auto, {m: DockingProblem(**kw, right_arm=m) for m in MODES}
 
@@ -97,7 +97,7 @@ def _travel(start, goal, d2, widen):
 
 def _scaled(x, s):
     y = np.array(x, dtype=np.float64)
-    y[:6] *= s
+    y[:R.n_intervals_of(y)] *= s
     return y
 
 

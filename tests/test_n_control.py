@@ -1,0 +1,176 @@
+"""Splines of any number of free control points (``DockingProblem(n_control=n)``, n = 1..64).
+
+Every check is against the independent reference of ``tests/reference.py`` (a SciPy
+``BSpline`` of the same knots and control points, Gauss–Legendre jerk integrals, dense
+sampling of the limits): objectives to 1e-9 relative, limit columns never below the dense
+maximum and at most 0.01 above it (conventions §6), in every right-arm treatment, screened
+or not, and for the plans, optimisers and studies built on the kernel.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from dockjax import DockingProblem, cli
+from dockjax.optimize import optimize
+from dockjax.plan import plan
+from tests import reference as R
+from tests.test_right_arm_certified import _check, _problems, _scaled, _travel, dense_bracket
+
+ROWS = 4
+
+
+def _reference_check(p: DockingProblem, X, F, G):
+    """F to 1e-9 relative and every G column in [dense − 1e-9, dense + 0.01] (reference only)."""
+    lim = np.asarray(p.limits)
+    for i, x in enumerate(X):
+        T, jerk = R.reference_objectives(x, p.start, p.goal, p.arm_distance)
+        np.testing.assert_allclose(F[i], [T, jerk], rtol=1e-9, err_msg=f"F of row {i}")
+        dense = R.dense_constraints(x, p.start, p.goal, p.arm_distance, lim[:, 0], lim[:, 1], lim[:, 2],
+                                    home=p.home, n_samples=10001)
+        assert np.all(G[i] >= dense - 1e-9), (i, np.min(G[i] - dense))
+        assert np.all(G[i] <= dense + 0.01), (i, np.max(G[i] - dense))
+
+
+@pytest.mark.parametrize("n", [1, 12, 64])
+def test_scores_of_any_family_match_the_reference(n):
+    """Random candidates of the box and near-limit ones (a row's intervals scaled so that its
+    largest rate column sits at its limit) of a spline with n free control points."""
+    p = DockingProblem(n_control=n, interval_bounds=(0.5, 10.0))
+    assert p.n_var == 7 * n + 1 and p.n_intervals == n + 1
+    assert (p.lower.shape, p.upper.shape) == ((7 * n + 1,), (7 * n + 1,))
+    rng = np.random.default_rng(n)
+    X = rng.uniform(p.lower, p.upper, (ROWS, p.n_var))
+    # row 3: row 0 slowed so that its worst velocity or acceleration column is at its limit
+    m = R.dense_quantity_maxima(X[0], p.start, p.goal, p.arm_distance, home=p.home, n_samples=4001) / p.limits
+    X[3] = _scaled(X[0], max(m[:, 1].max(), np.sqrt(m[:, 2].max())))
+    X[3, : p.n_intervals] = np.minimum(X[3, : p.n_intervals], 1e3)
+    for screen in (True, False):
+        F, G = p.evaluate(X, screen=screen)
+        assert F.shape == (ROWS, 2) and G.shape == (ROWS, 24)
+        _reference_check(p, X, F, G)
+
+
+def test_decoded_trajectory_is_the_reference_spline():
+    p = DockingProblem(n_control=7)
+    x = np.random.default_rng(7).uniform(p.lower, p.upper)
+    tr = p.decode(x)
+    assert tr.knots.shape == (19,) and tr.control_points.shape == (13, 6)
+    t = np.linspace(0.0, tr.T, 301)
+    ref = R.pose_spline(x, p.start, p.goal)
+    np.testing.assert_allclose(tr.pose(t), ref(t), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(tr.knots, R.knots(x[:8]), rtol=1e-15, atol=0)
+
+
+def test_reduced_family_puts_the_points_on_the_line():
+    p = DockingProblem(n_control=9, reduced=True)
+    assert p.n_var == 10
+    h = np.random.default_rng(9).uniform(p.lower, p.upper, (ROWS, 10))
+    F, G = p.evaluate(h)
+    full = np.array([R.reduced_to_full(row, p.start, p.goal) for row in h])
+    _reference_check(p, full, F, G)
+
+
+@given(
+    move=st.tuples(st.floats(-100, 100), st.floats(-100, 100), st.floats(-300, 300), st.floats(-30, 30),
+                   st.floats(-30, 30), st.floats(-10, 10)),
+    log_lo=st.floats(-1.0, 2.0),
+    ratio=st.floats(1.2, 10.0),
+    seed=st.integers(0, 2**32 - 1),
+    joint=st.sampled_from([4, 5, 6]),
+)
+def test_right_arm_columns_of_other_families_are_certified_in_every_mode(move, log_lo, ratio, seed, joint):
+    """Attitude moves of tens of degrees with 3 free control points: every treatment of the
+    right arm, screened or not, never below the dense bracket and (but ``"bound"``) within
+    0.01 of the limit above it."""
+    start = (760.0, -20.0, -1400.0, 5.0, -3.0, 185.0)
+    goal = tuple(float(a + b) for a, b in zip(start, move))
+    lo = float(10.0 ** log_lo)
+    travel = _travel(start, goal, 2000.0, 1.2)
+    p_auto, problems = _problems(start, goal, 2000.0, (lo, lo * ratio), travel, n_control=3)
+    x, y = np.random.default_rng(seed).uniform(p_auto.lower, p_auto.upper, (2, p_auto.n_var))
+    lower, _ = dense_bracket(p_auto, x)
+    # near-limit rows: x slowed (velocity ∝ 1/s, acceleration ∝ 1/s²) to put one right-arm
+    # velocity and one acceleration column at their limits
+    s_v, s_a = lower[3 * joint + 1] + 1.0, np.sqrt(max(lower[3 * joint + 2] + 1.0, 0.0))
+    X = np.stack([x, y] + [_scaled(x, s) if s > 1e-12 else y for s in (s_v, s_a)])
+    _check(p_auto, problems, X, f"n_control=3, goal={goal}, interval_bounds={(lo, lo * ratio)}")
+
+
+@pytest.mark.parametrize("value", [0, 65, 2.5, "5", None])
+def test_bad_n_control_is_refused_naming_it(value):
+    with pytest.raises(ValueError, match="n_control must be an integer from 1 to 64"):
+        DockingProblem(n_control=value)
+
+
+def test_one_family_compiles_once_and_problems_of_two_families_differ():
+    a, b = DockingProblem(n_control=2), DockingProblem(n_control=3)
+    assert a.identity() != b.identity() and "n_control" in a.identity()
+    assert "n_control" not in DockingProblem().identity()  # the paper's family keeps its identity
+    assert "n_control=2" in repr(a) and "n_control" not in repr(DockingProblem())
+
+
+@pytest.mark.parametrize("algorithm", ["nsga2", "mopso", "mocs", "imocs"])
+def test_every_optimiser_runs_on_another_family_and_its_feasible_points_are_certified(algorithm):
+    p = DockingProblem(n_control=2)
+    res = optimize(algorithm, p, pop_size=8, n_iter=4, seeds=[0])
+    assert res.X.shape == (1, 8, 15)
+    X, G = np.asarray(res.X[0]), np.asarray(res.G[0])
+    assert np.all(X >= p.lower - 1e-12) and np.all(X <= p.upper + 1e-12)
+    ok = np.all(G <= 0, 1)
+    if ok.any():
+        dense, feasible = R.dense_check(p, X[ok], n_samples=4001)
+        assert feasible.all(), dense.max()
+
+
+def test_a_plan_with_two_control_points_is_certified_by_the_reference():
+    p = DockingProblem(n_control=2, interval_bounds=(1.0, 10.0))
+    result = plan(p, rate=20.0, n_front=2, weights=(1.0, 0.0))
+    assert result.x.shape == (15,)
+    _, feasible = R.dense_check(p, result.x[None], n_samples=20001)
+    assert feasible.all()
+    T, jerk = R.reference_objectives(result.x, p.start, p.goal, p.arm_distance)
+    assert result.T == pytest.approx(T, rel=1e-9) and result.jerk == pytest.approx(jerk, rel=1e-9)
+
+
+def _main(argv):
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        code = cli.main(argv)
+    return code, text.getvalue()
+
+
+def test_plan_command_takes_n_control_and_records_it(tmp_path):
+    out = tmp_path / "plan"
+    code, _ = _main(["plan", "--n-control", "2", "--interval-bounds", "1", "10", "--n-front", "2",
+                     "--select", "time", "--rate", "20", "--out", str(out)])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["settings"]["n_control"] == 2 and len(summary["x"]) == 15
+
+
+@pytest.mark.parametrize("argv", [["plan", "--n-control", "0"], ["plan", "--n-control", "65"],
+                                  ["sweep", "--n-control", "0"], ["compare", "--n-control", "99"]])
+def test_commands_refuse_a_bad_n_control_with_one_line(tmp_path, capsys, argv):
+    code, _ = _main([*argv, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--n-control" in err and "from 1 to 64" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_study_records_its_family_and_refuses_another():
+    from dockjax.sweep import make_config, paper_config
+    from dockjax.sweep.config import SweepConfig
+
+    cfg, _ = make_config(pop=(8,), iters=(2,), seeds=2, n_control=3)
+    assert cfg.identity()["n_control"] == 3
+    assert SweepConfig.from_identity(cfg.identity()).n_control == 3
+    assert "n_control" not in make_config(pop=(8,), iters=(2,), seeds=2)[0].identity()
+    assert paper_config(seeds=2, pop=8, iters=2, n_control=3).n_control == 3
