@@ -46,6 +46,8 @@ __all__ = [
     "poly_taylor",
     "poly_taylor_terms",
     "evaluate",
+    "insert_knots",
+    "split_counts",
 ]
 
 
@@ -216,3 +218,38 @@ def evaluate(c, u, t, derivative: int = 0):
     tau = t - u[DEGREE + k]
     ck = jnp.moveaxis(c[k], 1, -1)  # (m, d, 6)
     return poly_eval(poly_derivative(ck, derivative), tau[:, None])
+
+
+def insert_knots(u, ctrl, new):
+    """The same spline on a finer knot vector, by Boehm's knot insertion (host-side NumPy).
+
+    u: (m,) clamped knots of degree :data:`DEGREE`, ctrl: (m − 6, d), new: knots to insert,
+    each inside ``(u[0], u[-1])``. → ``(u', ctrl')`` with ``len(new)`` more knots and control
+    points. Each new control point is a convex combination of two old ones, so a convex box
+    holding the old points holds the new; the curve is unchanged (up to rounding).
+    """
+    u = np.asarray(u, np.float64)
+    P = np.asarray(ctrl, np.float64)
+    p = DEGREE
+    for t in np.sort(np.asarray(new, np.float64)):
+        k = int(np.searchsorted(u, t, side="right")) - 1  # u[k] <= t < u[k + 1]
+        i = np.arange(k - p + 1, k + 1)
+        a = (t - u[i]) / (u[i + p] - u[i])
+        mid = (1.0 - a)[:, None] * P[i - 1] + a[:, None] * P[i]
+        P = np.concatenate([P[: k - p + 1], mid, P[k:]])
+        u = np.insert(u, k + 1, t)
+    return u, P
+
+
+def split_counts(h, total: int, shortest: float = 0.0) -> np.ndarray:
+    """Into how many equal pieces to cut each interval h (s,) to make ``total`` intervals
+    (``total >= s``): in proportion to the lengths (largest remainders first), no piece
+    shorter than ``shortest`` where the lengths allow it. → (s,) ints summing to ``total``."""
+    h = np.asarray(h, np.float64)
+    cap = np.maximum(1, np.floor(h / shortest).astype(int)) if shortest > 0 else np.full(h.shape, total)
+    counts = np.ones(h.shape, int)
+    for _ in range(total - len(h)):
+        room = counts < cap
+        score = np.where(room, h / counts, -np.inf) if room.any() else h / counts
+        counts[int(np.argmax(score))] += 1
+    return counts

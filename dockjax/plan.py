@@ -147,8 +147,18 @@ FD_STEP = 0.01
 
 def _shortest(problem: DockingProblem, x0=None) -> solve.Solution:
     """The shortest-time solution, the least jerk among the shortest
-    (:func:`dockjax.solve.shortest`), from ``x0`` (default: the straight line at the
-    shortest T the box allows, slowed until feasible)."""
+    (:func:`dockjax.solve.shortest`), from ``x0``. By default from the straight line at the
+    shortest T the box allows, slowed until feasible; with more free control points than the
+    paper's five, from the paper family's shortest-time trajectory written in the finer
+    family (:func:`dockjax.solve.refine_family`: the same trajectory, so the answer is never
+    slower than the paper family's, and the SQP of the larger programme starts near its
+    optimum), when that family has a feasible trajectory."""
+    if x0 is None and problem.n_control > config.N_FREE and not problem.reduced:
+        coarse = problem.with_n_control(config.N_FREE)
+        try:
+            x0 = solve.refine_family(problem, coarse, _shortest(coarse).x)
+        except PlanError:
+            x0 = None
     if x0 is None:
         x0 = solve.straight_line(problem, [problem.n_intervals * problem.interval_bounds[0]])[0]
     sol = solve.shortest(problem, x0)

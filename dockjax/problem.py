@@ -238,6 +238,14 @@ class DockingProblem:
             out[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple, list)) else v
         return out
 
+    def with_n_control(self, n_control: int) -> "DockingProblem":
+        """The same move, limits and bounds with a spline of ``n_control`` free control points."""
+        if n_control == self.n_control:
+            return self
+        kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+              if f.init and f.name not in ("box", "n_control", "right_arm")}
+        return DockingProblem(**kw, n_control=n_control, right_arm="auto" if self._auto_bound else self.right_arm)
+
     def with_right_arm(self, mode: str) -> "DockingProblem":
         """The same problem with another treatment of the right arm (``"bound"``,
         ``"taylor"`` or ``"adaptive"``); shares every array."""

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from . import config, extrema
-from .bspline import poly_derivative, poly_eval
+from .bspline import insert_knots, poly_derivative, poly_eval, split_counts
 from .decoding import spans
 from .fusion import materialize
 from .limits import joint_series
@@ -47,7 +47,8 @@ from .problem import DockingProblem
 from .right_arm import linearisation_remainders
 
 __all__ = ["Solution", "PlanError", "candidate_limits", "critical_times", "straight_line", "least_jerk",
-           "least_jerk_front", "map_to", "min_time", "min_jerk", "shortest", "certify_scaling", "infeasibility",
+           "least_jerk_front", "map_to", "refine_family", "min_time", "min_jerk", "shortest", "certify_scaling",
+           "infeasibility",
            "scaling_need", "scaling_needs", "sensitivities", "time_scale"]
 
 
@@ -275,28 +276,61 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
             cache[key] = tuple(np.asarray(a, np.float64) for a in out)
         return cache[key]
 
-    cons = [{"type": "ineq", "fun": lambda u: -values(u)[2], "jac": lambda u: -values(u)[3]}]
-    if cap is not None:
-        wh = width[:n]
-        b = max(cap * (1.0 - 1e-12) - lo[:n].sum(), 0.0)  # a hair inside, never below the box
-        a = np.zeros_like(u0)
-        a[:n] = -wh
-        cons.append({"type": "ineq", "fun": lambda u: b + a @ u, "jac": lambda u: a})
+    # a large programme keeps only its near-active limit constraints (the dense QP of each SQP
+    # step costs in proportion to the constraints): those above -NEAR_ACTIVE at the start,
+    # and, round by round, any other that comes within NEAR_ACTIVE / 2 of its limit
+    keep = None if n_candidates <= DENSE_CONSTRAINTS else values(u0)[2] > -NEAR_ACTIVE
     nit = 0
-    for _ in range(1 + restarts):  # a restart renews SLSQP's curvature estimate
-        res = minimize(lambda u: values(u)[0], u0, jac=lambda u: values(u)[1], method="SLSQP",
-                       bounds=list(zip(np.zeros_like(top), top)), constraints=cons,
-                       options={"maxiter": int(max_iter), "ftol": tol})
-        nit += int(res.nit)
-        if res.success:
+    for _ in range(ACTIVE_ROUNDS if keep is not None else 1):
+        if keep is None:
+            cons = [{"type": "ineq", "fun": lambda u: -values(u)[2], "jac": lambda u: -values(u)[3]}]
+        else:
+            cons = [{"type": "ineq", "fun": lambda u, k=keep: -values(u)[2][k],
+                     "jac": lambda u, k=keep: -values(u)[3][k]}]
+        if cap is not None:
+            wh = width[:n]
+            b = max(cap * (1.0 - 1e-12) - lo[:n].sum(), 0.0)  # a hair inside, never below the box
+            a = np.zeros_like(u0)
+            a[:n] = -wh
+            cons.append({"type": "ineq", "fun": lambda u: b + a @ u, "jac": lambda u: a})
+        for _ in range(1 + restarts):  # a restart renews SLSQP's curvature estimate
+            res = minimize(lambda u: values(u)[0], u0, jac=lambda u: values(u)[1], method="SLSQP",
+                           bounds=list(zip(np.zeros_like(top), top)), constraints=cons,
+                           options={"maxiter": int(max_iter), "ftol": tol})
+            nit += int(res.nit)
+            if res.success:
+                break
+            u0 = np.clip(res.x, 0.0, top)
+        if keep is None:
             break
         u0 = np.clip(res.x, 0.0, top)
+        g = values(u0)[2]
+        if not np.any(~keep & (g > -0.5 * NEAR_ACTIVE)):
+            break
+        keep = keep | (g > -NEAR_ACTIVE)
     res.nit = nit
     m = np.asarray(getattr(res, "multipliers", np.zeros(0)), np.float64).ravel()
-    mult = m[:n_candidates] if m.size >= n_candidates else np.zeros(n_candidates)
-    cap_mult = float(m[n_candidates]) if cap is not None and m.size > n_candidates else 0.0
+    n_kept = n_candidates if keep is None else int(keep.sum())
+    mult = np.zeros(n_candidates)
+    if m.size >= n_kept:
+        if keep is None:
+            mult = m[:n_candidates]
+        else:
+            mult[keep] = m[:n_kept]
+    cap_mult = float(m[n_kept]) if cap is not None and m.size > n_kept else 0.0
     return lo + np.clip(res.x, 0.0, top) * width, res, (mult.reshape(n, config.N_JOINTS, CRITICAL_VALUES), cap_mult)
 
+
+DENSE_CONSTRAINTS = 720
+"""Most limit constraints an SQP step takes all at once (the paper's family has 720); larger
+programmes keep their near-active ones (:data:`NEAR_ACTIVE`)."""
+NEAR_ACTIVE = 0.75
+"""A limit constraint ``(q/L)² − (1 − r/L)²`` of a large programme is kept when above
+``−NEAR_ACTIVE`` (the value above about half its limit); a solve is repeated, with the
+constraints above that value added, while one left out comes within ``NEAR_ACTIVE / 2``, so a
+programme's answer meets every constraint."""
+ACTIVE_ROUNDS = 6
+"""Most rounds of adding constraints to a large programme."""
 
 INTERVAL_ROOM = 1e-6
 """Room (unit-box units) kept below the intervals' upper bounds when a solve is repeated because
@@ -462,6 +496,32 @@ def least_jerk_front(problem: DockingProblem, shortest: Solution, caps, *, line:
             out.append(best)
             prev = best
     return out
+
+
+def refine_family(problem: DockingProblem, source: DockingProblem, x) -> np.ndarray | None:
+    """The trajectory x (``source.n_var``,) of a family with fewer control points as a decision
+    vector of ``problem``'s family (the same move, more control points): each interval cut
+    into equal pieces (:func:`dockjax.bspline.split_counts`, none shorter than the lower
+    interval bound where possible) and the knots inserted (:func:`dockjax.bspline.insert_knots`),
+    so T, the jerk and every limit column are those of x up to rounding. None when
+    ``problem`` has fewer control points than ``source``, either is reduced, or the pieces
+    cannot all meet the interval bounds."""
+    if problem.reduced or source.reduced or problem.n_control < source.n_control:
+        return None
+    x = np.asarray(x, np.float64)
+    h = x[: source.n_intervals]
+    counts = split_counts(h, problem.n_intervals, problem.interval_bounds[0])
+    pieces = np.repeat(h / counts, counts)
+    if pieces.min() < problem.interval_bounds[0] or pieces.max() > problem.interval_bounds[1]:
+        return None
+    u = np.concatenate([np.zeros(6), np.cumsum(h)[:-1], np.full(6, h.sum())])
+    ctrl = np.concatenate([np.tile(source.start, (3, 1)), x[source.n_intervals:].reshape(-1, config.N_POSE),
+                           np.tile(source.goal, (3, 1))])
+    t0 = np.concatenate([[0.0], np.cumsum(h)])
+    new = np.concatenate([t0[k] + h[k] * np.arange(1, m) / m for k, m in enumerate(counts)])
+    _, fine = insert_knots(u, ctrl, new)
+    out = np.concatenate([pieces, fine[3:-3].ravel()])
+    return np.clip(out, problem.lower, problem.upper)
 
 
 def map_to(problem: DockingProblem, template: DockingProblem, X) -> np.ndarray:

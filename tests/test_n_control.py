@@ -174,3 +174,43 @@ def test_a_study_records_its_family_and_refuses_another():
     assert SweepConfig.from_identity(cfg.identity()).n_control == 3
     assert "n_control" not in make_config(pop=(8,), iters=(2,), seeds=2)[0].identity()
     assert paper_config(seeds=2, pop=8, iters=2, n_control=3).n_control == 3
+
+
+def test_knot_insertion_matches_scipys_insert():
+    """Boehm's insertion against SciPy's FITPACK ``insert``, coordinate by coordinate."""
+    from scipy.interpolate import insert
+
+    from dockjax.bspline import insert_knots
+
+    rng = np.random.default_rng(3)
+    u = R.knots(rng.uniform(0.5, 2.0, 6))
+    ctrl = rng.normal(size=(11, 2))
+    new = np.sort(rng.uniform(u[0], u[-1], 4))
+    u2, c2 = insert_knots(u, ctrl, new)
+    for d in range(2):
+        t, c, _ = u, np.r_[ctrl[:, d], np.zeros(6)], 5  # FITPACK pads c to len(t)
+        for v in new:
+            t, c, _ = insert(v, (t, c, 5))
+        np.testing.assert_allclose(u2, t, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(c2[:, d], c[: len(u2) - 6], rtol=0, atol=1e-12)
+
+
+def test_a_trajectory_carried_to_a_finer_family_keeps_its_scores():
+    from dockjax.solve import refine_family
+
+    coarse = DockingProblem(interval_bounds=(0.5, 10.0))
+    fine = coarse.with_n_control(12)
+    assert fine.n_control == 12 and fine.interval_bounds == coarse.interval_bounds
+    x = np.random.default_rng(5).uniform(coarse.lower, coarse.upper)
+    y = refine_family(fine, coarse, x)
+    assert y.shape == (fine.n_var,) and np.all(y >= fine.lower) and np.all(y <= fine.upper)
+    t = np.linspace(0.0, x[:6].sum(), 501)
+    np.testing.assert_allclose(R.pose_spline(y, fine.start, fine.goal)(t), R.pose_spline(x, coarse.start,
+                               coarse.goal)(t), rtol=0, atol=1e-9)
+    (F1, G1), (F2, G2) = coarse.evaluate(x[None], screen=False), fine.evaluate(y[None], screen=False)
+    np.testing.assert_allclose(F2, F1, rtol=1e-9)
+    linear = np.r_[0:12, 21:24]  # the joints linear in the pose: exact columns in both families
+    np.testing.assert_allclose(G2[:, linear], G1[:, linear], rtol=0, atol=1e-9)
+    _reference_check(fine, y[None], F2, G2)  # the right arm's: certified bounds in both
+    _reference_check(coarse, x[None], F1, G1)
+    assert refine_family(coarse, fine, y) is None  # no family with fewer points
