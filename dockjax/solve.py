@@ -459,11 +459,14 @@ def straight_line(problem: DockingProblem, T) -> np.ndarray:
 def least_jerk(problem: DockingProblem, cap: float, starts, *, restarts: int = 0, tol: float = 1e-12,
                max_iter: int = 200) -> Solution | None:
     """The lowest-jerk :func:`min_jerk` solution at ``cap`` over the start points ``starts``
-    (each (n_var,)) and the straight line with equal intervals (always tried last); then
-    up to ``restarts`` fresh solves from the best solver point (a restart renews SLSQP's
-    curvature estimate), while they lower the jerk."""
+    (each (n_var,)) and the straight line with equal intervals (tried last; for a family of
+    more than the paper's five control points only when no start is given: there the line
+    is far from the optimum and its solve the dearest); then up to ``restarts`` fresh solves
+    from the best solver point (a restart renews SLSQP's curvature estimate), while they
+    lower the jerk."""
     best = None
-    for x0 in [*starts, straight_line(problem, [cap])[0]]:
+    line = [] if starts and problem.n_control > config.N_FREE else [straight_line(problem, [cap])[0]]
+    for x0 in [*starts, *line]:
         s = min_jerk(problem, x0, cap, tol=tol, max_iter=max_iter)
         if s is not None and (best is None or s.F[1] < best.F[1]):
             best = s
