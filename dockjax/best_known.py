@@ -1,8 +1,9 @@
 """The best-known front of a problem: the yardstick of every study (conventions §8).
 
 :func:`best_known_front` is an ε-constraint sweep over ``T`` from the shortest feasible time
-to ``6 h_hi``: anchors solved by sequential quadratic programming (:mod:`dockjax.solve`) and
-a dense set of caps polished from them by gradient refinement (:func:`dockjax.refine.polish`).
+to ``(n + 1) h_hi`` (``6 h_hi`` in the paper's family): anchors solved by sequential
+quadratic programming (:mod:`dockjax.solve`) and a dense set of caps polished from them by
+gradient refinement (:func:`dockjax.refine.polish`).
 It never sees any optimiser's front: it depends only on the problem, so it is an
 independent yardstick for the optimisers' fronts. :func:`best_known_cached` computes it once
 per problem definition and settings and keeps it on disk (:func:`fronts_cache`), keyed by
@@ -62,9 +63,10 @@ class FrontResult:
 def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: int = 20, line: bool = False,
                      steps: int = 600, learning_rate: float = 0.05, penalty: float = 10.0, margin: float = 1e-4,
                      rows: int | None = None) -> FrontResult:
-    """An ε-constraint sweep of T from the shortest feasible time to ``6 h_hi``.
+    """An ε-constraint sweep of T from the shortest feasible time to ``(n + 1) h_hi`` (the
+    longest T; ``6 h_hi`` in the paper's family).
 
-    1. The shortest time, and the least jerk at ``n_exact`` caps from it to ``6 h_hi``
+    1. The shortest time, and the least jerk at ``n_exact`` caps from it to the longest T
        (quadratically spaced: dense where the front is steep), by sequential quadratic
        programming (:func:`dockjax.solve.shortest`, :func:`dockjax.solve.least_jerk_front`;
        by continuation, and with ``line`` from the straight line too): the anchors.

@@ -290,8 +290,9 @@ def check_move(problem: DockingProblem) -> None:
 def check_duration(problem: DockingProblem, duration) -> float | None:
     """:func:`plan`'s ``duration`` checked against the interval bounds (ValueError naming
     it): None, or a finite number of seconds no longer than the longest T the bounds allow
-    (``6 × hi``). Cheap: no JAX computation. A duration below the shortest feasible time is
-    not bad input but a :class:`PlanError` of :func:`plan` (it takes a solve to know)."""
+    (``(n + 1) × hi``, 6 × hi in the paper's family). Cheap: no JAX computation. A duration
+    below the shortest feasible time is not bad input but a :class:`PlanError` of
+    :func:`plan` (it takes a solve to know)."""
     if duration is None:
         return None
     d = checks.vector("duration", [duration], (1,), positive=True)[0]
@@ -335,7 +336,7 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
 
     ``duration`` (s): instead of a choice by weights, the least-jerk plan that takes exactly
     that long (to rounding; :func:`_of_duration`), for a move that must fit a fixed cycle.
-    It must be at most the longest T the interval bounds allow (``6 × hi``, else
+    It must be at most the longest T the interval bounds allow (``(n + 1) × hi``, else
     ValueError); below the shortest feasible time, :class:`PlanError` names the limit that
     binds the shortest-time trajectory and that time.
 
