@@ -233,7 +233,7 @@ class DockingProblem:
             if not f.init or f.name == "box":
                 continue
             if f.name == "n_control" and self.n_control == config.N_FREE:
-                continue  # the paper's family: identities (and caches keyed on them) as before n_control
+                continue  # left out for the paper's family: its identity and the caches keyed on it need no such field
             v = getattr(self, f.name)
             out[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple, list)) else v
         return out
