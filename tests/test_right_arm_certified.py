@@ -110,7 +110,9 @@ def _check(p_auto, problems, X, where):
     for mode, p in {"auto": p_auto, **problems}.items():
         for screen in (True, False):
             G = _evaluate(p, X, screen)
-            below = G - lower
+            # the reference's own rounding: BELOW, and a few ulps of the value where a scaled
+            # row lies millions of limits over (its q/L − 1 is rounded at that magnitude)
+            below = (G - lower) / (1.0 + 8 * np.finfo(float).eps / BELOW * np.abs(lower))
             i, j = np.unravel_index(np.argmin(below), below.shape)
             assert below[i, j] >= -BELOW, (
                 f"{mode} (screen={screen}) understates column {j} of row {i} by {-below[i, j]:.3g} "
