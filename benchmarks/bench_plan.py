@@ -1,8 +1,9 @@
-"""Plans on the default move beside ruckig and toppra, and warm replanning.
+"""Plans on the default move beside ruckig and toppra, warm replanning, and plans with more
+control points and jerk limits beside ruckig.
 
-    python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--jerk-limits 25] [--n-front 8] [--peer-rate 10000]
-                                    [--figure docs/plan_peers.png] [--best-known 40 20 600]
-    python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1000  # quick
+python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--jerk-limits 25] [--n-front 8] [--peer-rate 10000]
+                                [--figure docs/plan_peers.png] [--best-known 40 20 600] [--controls 5 16 32]
+python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1e3 --controls 2 # quick
 
 The default start and goal with paper Table 2 limits, knot intervals in [0.5, 10] s (the
 ``wide`` preset, where time is limited by the joints rather than by the box). Rows:
@@ -30,6 +31,15 @@ from the planner's own answer (:func:`dockjax.solve.least_jerk`). The front figu
 the best-known front (``--best-known``: its time caps, SQP anchors and refinement steps per
 cap) with every peer's point. A peer that is not installed (ruckig and toppra come with the
 ``bench`` extra) is skipped with a line saying so.
+
+The last table (``--controls``, no values to skip it) plans the shortest time with n free
+control points on two moves, knot intervals in [0.05, 30] s (small enough for many
+intervals): the default move with Table 2 limits, and the same move with jerk limits
+:data:`JERK_LIMITS` per arm joint beside ruckig's time-optimal joint-space move under the
+same velocity, acceleration and jerk limits. Per n: T, T over ruckig's, the largest sampled
+|jerk| over its limit (at ``--peer-rate``) and the kernel's largest column (certified: at
+most 0), and the wall time of one warm :func:`dockjax.plan.plan` call (after one call that
+compiles) and its ratio to the first n's.
 """
 
 from __future__ import annotations
@@ -47,9 +57,14 @@ from dockjax.best_known import best_known_front
 from dockjax.kinematics import inverse_kinematics
 from dockjax.plan import Planner, plan
 from dockjax.problem import DockingProblem, make_problem
+from dockjax.robot import by_kind
 from dockjax.solve import least_jerk
 
 RATE = 10_000.0
+JERK_LIMITS = (10.0, 10.0, 1.0, 10.0)
+"""Jerk limits per arm joint of the last table (axial, lift, lateral in mm/s³; roll in °/s³)."""
+N_CONTROL_BOUNDS = (0.05, 30.0)
+"""Interval bounds of the last table's plans (s)."""
 
 
 def _median_time(fn, repeats):
@@ -82,6 +97,8 @@ def _peer(name: str, skipped: list[str]):
 
 
 def _ruckig(q0, q1, limits, jerk_limit, duration=None):
+    """ruckig's time-synchronised move from rest at q0 to rest at q1 under the velocity and
+    acceleration columns of ``limits`` (8, kinds) and ``jerk_limit`` (a number or 8)."""
     import ruckig
 
     n = len(q0)
@@ -90,7 +107,7 @@ def _ruckig(q0, q1, limits, jerk_limit, duration=None):
     inp.current_velocity = inp.current_acceleration = [0.0] * n
     inp.target_velocity = inp.target_acceleration = [0.0] * n
     inp.max_velocity, inp.max_acceleration = list(limits[:, 1]), list(limits[:, 2])
-    inp.max_jerk = [float(jerk_limit)] * n
+    inp.max_jerk = list(np.broadcast_to(np.asarray(jerk_limit, np.float64), (n,)))
     if duration is not None:
         inp.minimum_duration = float(duration)
     traj = ruckig.Trajectory(n)
@@ -130,6 +147,43 @@ def _toppra_samples(traj, rate):
     return t, traj(t), traj(t, 1), traj(t, 2)
 
 
+def _timed_plan(problem, rate):
+    """The shortest-time plan of ``problem`` and the wall time of a warm call (after one that
+    compiles)."""
+    options = dict(weights=(1.0, 0.0), rate=rate, check_sensitivities=False)
+    plan(problem, **options)
+    t = time.perf_counter()
+    p = plan(problem, **options)
+    return p, time.perf_counter() - t
+
+
+def n_control_table(n_controls, rate: float, skipped: list[str]) -> None:
+    """The last table of the module docstring."""
+    print(f"\nshortest time with n free control points, default move, intervals in {N_CONTROL_BOUNDS} s; "
+          f"jerk limits {JERK_LIMITS} per arm joint beside ruckig under the same limits\n")
+    print("| n | T, Table 2 limits [s] | plan time | vs first | T, with jerk limits [s] | T / ruckig's "
+          "| max sampled jerk/limit | max G | plan time | vs first |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    ruck, first = None, None
+    for n in n_controls:
+        plain, t_plain = _timed_plan(DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n), rate)
+        problem = DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n, jerk=JERK_LIMITS)
+        p, t_jerk = _timed_plan(problem, rate)
+        lim = np.asarray(problem.limits)
+        if ruck is None and _peer("ruckig", skipped) is not None:
+            q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))
+            q1 = np.asarray(inverse_kinematics(problem.goal, problem.arm_distance))
+            ruck = _ruckig(q0, q1, lim, lim[:, 3]).duration
+        first = first or (t_plain, t_jerk)
+        G = problem.evaluate(p.x[None], screen=False)[1][0]
+        jerk_ratio = float(np.max(np.abs(p.samples["jerk"]) / lim[:, 3]))
+        vs = f"{p.T / ruck:.4f}" if ruck else "—"
+        print(f"| {n} | {plain.T:.3f} | {t_plain:.1f} s | {t_plain / first[0]:.2f} | {p.T:.3f} | {vs} "
+              f"| {jerk_ratio:.4f} | {G.max():.2g} | {t_jerk:.1f} s | {t_jerk / first[1]:.2f} |")
+    if ruck:
+        print(f"\nruckig's time-optimal move under the jerk limits: T = {ruck:.3f} s")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=7)
@@ -143,9 +197,13 @@ def main(argv: list[str] | None = None) -> None:
                     help="write the front with the peers' points here (alone: into a new temporary folder)")
     ap.add_argument("--best-known", type=int, nargs=3, default=[40, 20, 600], metavar=("POINTS", "ANCHORS", "STEPS"),
                     help="the figure's best-known front: time caps, SQP anchors, refinement steps per cap")
+    ap.add_argument("--controls", type=int, nargs="*", default=[5, 16, 32],
+                    help="free control points of the last table's plans (none: skip it)")
     args = ap.parse_args(argv)
     if args.repeats < 1 or args.replans < 1 or args.jerk_limits < 1:
         ap.error("--repeats, --replans and --jerk-limits must be >= 1")
+    if any(not 1 <= n <= config.MAX_CONTROL for n in args.controls):
+        ap.error(f"--controls values must be from 1 to {config.MAX_CONTROL}, got {args.controls}")
     if not args.peer_rate > 0:
         ap.error(f"--peer-rate must be > 0, got {args.peer_rate}")
     problem = make_problem("wide")
@@ -158,7 +216,7 @@ def main(argv: list[str] | None = None) -> None:
         options = dict(weights=weights, n_front=args.n_front, check_sensitivities=False)
         plan(problem, **options)  # compile
         p, dt = _median_time(lambda: plan(problem, **options), args.repeats)
-        g = p.problem.evaluate(p.x[None], screen=False)[1][0].reshape(8, 3)  # every column exact
+        g = by_kind(p.problem.evaluate(p.x[None], screen=False)[1][0])  # every column exact
         rows.append((label, p.T, p.jerk, float(np.max(g[:, 1] + 1)), float(np.max(g[:, 2] + 1)), dt))
         return p
 
@@ -225,6 +283,12 @@ def main(argv: list[str] | None = None) -> None:
         plots.plot_fronts(peers, figure, reference=front.F, reference_label="dockjax best-known front",
                           title="default move, Table 2 limits: dockjax's front and the peers")
         print(f"wrote {figure}")
+
+    if args.controls:
+        skipped: list[str] = []
+        n_control_table(args.controls, rate, skipped)
+        for note in skipped:
+            print(f"\n{note}")
 
 
 if __name__ == "__main__":

@@ -49,7 +49,6 @@ POSE_NAMES: tuple[str, ...] = ("x", "y", "z", "pitch", "yaw", "roll")
 POSE_UNITS: tuple[str, ...] = ("mm", "mm", "mm", "deg", "deg", "deg")
 JOINT_NAMES: tuple[str, ...] = ("d_L1", "d_L2", "d_L3", "theta_L", "d_R1", "d_R2", "d_R3", "theta_R")
 JOINT_UNITS: tuple[str, ...] = ("mm", "mm", "mm", "deg", "mm", "mm", "mm", "deg")
-QUANTITIES: tuple[str, ...] = ("travel", "velocity", "acceleration")
 RATE_SUFFIXES: tuple[str, ...] = ("", "/s", "/s^2", "/s^3")
 """Unit suffix of a quantity's time derivative of order 0..3 (position, velocity, ...)."""
 
@@ -69,7 +68,7 @@ MAX_CONTROL = 64
 N_POSE = 6
 N_JOINTS = 8
 N_VAR = N_INTERVALS + N_FREE * N_POSE  # 36, the paper's family
-N_CON = 3 * N_JOINTS  # 24
+N_CON = 3 * N_JOINTS  # 24: travel, velocity and acceleration per joint (32 with jerk limits)
 
 # -- the paper's study (§5) and its presets -------------------------------------------------
 POP_SIZE = 150

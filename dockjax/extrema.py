@@ -22,7 +22,7 @@ from .fusion import materialize
 
 __all__ = [
     "reduce_max", "quadratic_roots", "bracketed_root", "roots_in_brackets", "chain_extrema", "span_maxima",
-    "span_bounds", "rate_maxima",
+    "span_bounds", "rate_maxima", "jerk_times", "jerk_maxima",
 ]
 
 NEWTON_STEPS = 8
@@ -195,14 +195,32 @@ def _at(c, t):
     return poly_eval(c[..., None, :], t)
 
 
+def jerk_times(j, h):
+    """The candidate times of ``max |j|`` on ``[0, h]`` for a quadratic j (..., 3) (the jerk of a
+    quintic): the ends and the vertex (clipped into the span; no gradient, envelope theorem).
+    → (..., 3)."""
+    peak, _ = _safe_div(-j[..., 1], 2.0 * j[..., 2])
+    peak = jax.lax.stop_gradient(jnp.clip(peak, 0.0, h))
+    return jnp.stack([jnp.zeros_like(h), h, peak], -1)
+
+
+def _quadratic_max(j, h):
+    """``max |j|`` on ``[0, h]`` of a quadratic j (..., 3): at the ends or the vertex, exact."""
+    return reduce_max(jnp.abs(_at(j, jerk_times(j, h))), -1)
+
+
+def jerk_maxima(c, h):
+    """The largest |jerk| (third derivative) of a quintic c (..., 6) on ``[0, h]`` (...): the
+    jerk is a quadratic, so it is reached at an end or at the vertex (closed form, exact to
+    rounding)."""
+    return _quadratic_max(poly_derivative(c, 3), h)
+
+
 def _rate_maxima(d, h, vt, vw, at):
     """max |Q'| and |Q''| from the critical times (see :func:`span_maxima`); d: the series
     of Q and its first three derivatives."""
     amax = reduce_max(jnp.abs(_at(d[2], at)), -1)
-    jpeak, _ = _safe_div(-d[3][..., 1], 2.0 * d[3][..., 2])  # vertex of the quadratic jerk
-    jpeak = jax.lax.stop_gradient(jnp.clip(jpeak, 0.0, h))  # envelope theorem, as above
-    jt = jnp.stack([jnp.zeros_like(h), h, jpeak], -1)
-    jmax = reduce_max(jnp.abs(_at(d[3], jt)), -1)
+    jmax = _quadratic_max(d[3], h)
     vmax = reduce_max(
         jnp.abs(_at(d[1], vt)) + jnp.abs(_at(d[2], vt)) * vw + 0.5 * jmax[..., None] * vw * vw, -1
     )

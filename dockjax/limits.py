@@ -28,6 +28,7 @@ from . import extrema, kinematics
 from .config import DEG as _DEG
 from .fusion import materialize
 from .right_arm import linearisation_remainders, right_taylor_maxima
+from .robot import ATTITUDE_JOINTS
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
@@ -74,8 +75,21 @@ def joint_series(problem: "DockingProblem", c, h, ref):
     return polys - problem.home[None, :, None] * e0
 
 
+def _with_jerk(problem: "DockingProblem", M, polys, h, rem):
+    """M (8, 3) with the problem's jerk column appended when it has jerk limits: per span the
+    closed-form maximum of the series' quadratic jerk (:func:`dockjax.extrema.jerk_maxima`),
+    plus the right arm's remainder ``rem`` (s, 3 joints) where given. → (8, kinds)."""
+    if problem.jerk is None:
+        return M
+    spans = extrema.jerk_maxima(polys, jnp.broadcast_to(h[:, None], polys.shape[:2]))  # (s, 8)
+    if rem is not None:
+        spans = spans.at[:, ATTITUDE_JOINTS].add(rem)
+    return jnp.concatenate([M, extrema.reduce_max(spans, 0)[:, None]], -1)
+
+
 def maxima(problem: "DockingProblem", c, h, ref, *, with_need: bool = False, screen: bool = False):
-    """``max_t |q_j − home_j|``, ``max |q_j'|``, ``max |q_j''|`` per joint. → (8, 3).
+    """``max_t |q_j − home_j|``, ``max |q_j'|``, ``max |q_j''|`` (and ``max |q_j'''|`` with jerk
+    limits) per joint. → (8, kinds).
 
     With ``with_need``, also whether this candidate's bound treatment of the right arm may
     overstate by more than :data:`BOUND_TOLERANCE` (always False in the ``"taylor"``
@@ -89,11 +103,15 @@ def maxima(problem: "DockingProblem", c, h, ref, *, with_need: bool = False, scr
         band = SCREEN_BAND if screen else None
         right = right_taylor_maxima(problem, c[None], h[None], tuple(a[None] for a in ref), band)[0]
         need = jnp.zeros((), bool)
+        lin = _with_jerk(problem, lin, polys, h, None)
     else:
-        rem = extrema.reduce_max(linearisation_remainders(problem, c, h, ref), 0)  # (3 joints, 3)
-        right = lin[4:7] + rem
-        need = jnp.any(2.0 * rem > BOUND_TOLERANCE * problem.limits[4:7])
-    out = lin.at[4:7].set(right)
+        rems = linearisation_remainders(problem, c, h, ref)  # (s, 3 joints, kinds)
+        rem = extrema.reduce_max(rems, 0)  # (3 joints, kinds)
+        lin = _with_jerk(problem, lin, polys, h, None if problem.jerk is None else rems[..., 3])
+        # the jerk column already holds the remainder (added per span by _with_jerk)
+        right = lin[ATTITUDE_JOINTS] + (rem if problem.jerk is None else jnp.pad(rem[:, :3], ((0, 0), (0, 1))))
+        need = jnp.any(2.0 * rem > BOUND_TOLERANCE * problem.limits[ATTITUDE_JOINTS])
+    out = lin.at[ATTITUDE_JOINTS].set(right)
     return (out, need) if with_need else out
 
 
@@ -118,9 +136,11 @@ def maxima_screened(problem: "DockingProblem", c, h, ref):
     polys = materialize(joint_series(problem, c, h, ref))  # (6, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     low, up = materialize(extrema.span_bounds(polys, hh))  # (6, 8, 3); read by several fusions
-    rem = extrema.reduce_max(linearisation_remainders(problem, c, h, ref), 0)  # (3 joints, 3)
-    extra = jnp.zeros((8, 3), c.dtype).at[4:7].set(rem)
-    lim = problem.limits
+    rems = linearisation_remainders(problem, c, h, ref)  # (s, 3 joints, kinds)
+    rem_all = extrema.reduce_max(rems, 0)  # (3 joints, kinds)
+    rem = rem_all[:, :3]
+    extra = jnp.zeros((8, 3), c.dtype).at[ATTITUDE_JOINTS].set(rem)
+    lim = problem.limits[:, :3]
     top = low.max(axis=0)
     est = top + extra
     far = (est < (1.0 - SCREEN_BAND) * lim) | (est > (1.0 + SCREEN_BAND) * lim)
@@ -149,11 +169,16 @@ def maxima_screened(problem: "DockingProblem", c, h, ref):
         hit = (joint == idx[r] % up.shape[1]) & filled[r]  # (8,)
         rate = jnp.maximum(rate, jnp.where(hit[:, None], jnp.minimum(up_items[idx[r], 1:], exact[r]), 0.0))
     M = jnp.concatenate([extrema.reduce_max(up[..., :1], 0), rate], axis=1) + extra
-    need = jnp.any(2.0 * rem > BOUND_TOLERANCE * lim[4:7])
+    need = jnp.any(2.0 * rem_all > BOUND_TOLERANCE * problem.limits[ATTITUDE_JOINTS])
     over = jnp.any(rest) | jnp.any(fail[:, 0])
+    # the jerk (a quadratic per span) is exact and cheap: no screening
+    M = _with_jerk(problem, M, polys, h, None if problem.jerk is None else rems[..., 3])
     return M, need, over, (polys.reshape(n_items, -1), hh.reshape(-1), extra)
 
 
-def columns(problem: "DockingProblem", M):
-    """G columns (..., 24) from the maxima (..., 8, 3) (conventions §6, with the safety margin)."""
-    return (M / problem.limits - 1.0 + G_SAFETY).reshape(M.shape[:-2] + (-1,))
+def columns(problem: "DockingProblem", M, limits=None):
+    """G columns (..., 8 · kinds) from the maxima (..., 8, kinds), joint-major (conventions §6,
+    with the safety margin); ``limits`` (8, kinds) replaces the problem's table (a subset of
+    its kinds)."""
+    lim = problem.limits if limits is None else limits
+    return (M / lim - 1.0 + G_SAFETY).reshape(M.shape[:-2] + (-1,))

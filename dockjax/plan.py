@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import checks, config, plots, select, solve
+from . import checks, config, plots, robot, select, solve
 from .algorithms import ALGORITHMS
 from .io import atomic_write_text, check_input_file, write_set
 from .metrics import nondominated_points
@@ -63,22 +63,20 @@ class Plan:
         the root chain, never understated: exact to rounding for the joints linear in the
         pose, within the right-arm treatment's tolerance for the others)."""
         s, lim = self.samples, self.problem.limits
-        G = self.problem.evaluate(self.x[None], screen=False)[1][0].reshape(8, 3)
+        G = robot.by_kind(self.problem.evaluate(self.x[None], screen=False)[1][0])
+        peaks = _sampled_peaks(self.problem, s)
         out = {}
         for j, name in enumerate(config.JOINT_NAMES):
             exact = (G[j] + 1.0) * lim[j]
-            out[name] = {
-                "unit": config.JOINT_UNITS[j],
-                "max_abs_velocity": float(np.max(np.abs(s["velocity"][:, j]))),
-                "max_abs_acceleration": float(np.max(np.abs(s["acceleration"][:, j]))),
-                "max_travel_from_home": float(np.max(np.abs(s["position"][:, j] - self.problem.home[j]))),
-                "velocity_limit": float(lim[j, 1]),
-                "acceleration_limit": float(lim[j, 2]),
-                "travel_limit": float(lim[j, 0]),
-                "velocity_margin": float(lim[j, 1] - exact[1]),
-                "acceleration_margin": float(lim[j, 2] - exact[2]),
-                "travel_margin": float(lim[j, 0] - exact[0]),
-            }
+            row = {"unit": config.JOINT_UNITS[j]}
+            for k, kind in enumerate(self.problem.kinds):
+                label = "max_travel_from_home" if k == 0 else f"max_abs_{kind.name}"
+                row[label] = float(peaks[j, k])
+            for k, kind in enumerate(self.problem.kinds):
+                row[f"{kind.name}_limit"] = float(lim[j, k])
+            for k, kind in enumerate(self.problem.kinds):
+                row[f"{kind.name}_margin"] = float(lim[j, k] - exact[k])
+            out[name] = row
         return out
 
 
@@ -88,7 +86,7 @@ MAX_LIMITS_FILE = 2**20
 
 def load_limits(path: str | Path) -> dict:
     """Read limit overrides from a TOML or JSON file: keys ``travel``, ``velocity``,
-    ``acceleration`` (4 or 8 numbers) and ``home`` (8 numbers). Unknown keys are refused."""
+    ``acceleration``, ``jerk`` (4 or 8 numbers) and ``home`` (8 numbers). Unknown keys are refused."""
     path = check_input_file(path, "limits file", MAX_LIMITS_FILE)
     try:
         text = path.read_text(encoding="utf-8-sig")  # a byte-order mark is not part of the text
@@ -110,7 +108,7 @@ def load_limits(path: str | Path) -> dict:
                          f"({'; '.join(errors)})")
     if not isinstance(data, dict):
         raise ValueError(f"limits file {path} must hold a table of limits")
-    allowed = {"travel", "velocity", "acceleration", "home"}
+    allowed = {k.name for k in robot.LIMIT_KINDS} | {"home"}
     unknown = sorted(set(data) - allowed)
     if unknown:
         raise ValueError(f"limits file {path}: unknown key(s) {unknown}; allowed {sorted(allowed)}")
@@ -121,14 +119,20 @@ def load_limits(path: str | Path) -> dict:
     return data
 
 
+def _sampled_series(problem: DockingProblem, s: dict, j: int, kind) -> np.ndarray:
+    """|the sampled quantity| that limit ``kind`` bounds, for joint j (m,) (travel about home)."""
+    v = s[robot.DERIVATIVES[kind.order]][:, j]
+    return np.abs(v - problem.home[j]) if kind.order == 0 else np.abs(v)
+
+
+def _sampled_peaks(problem: DockingProblem, s: dict) -> np.ndarray:
+    """Sampled ``max |quantity|`` of every limit column (8, kinds)."""
+    return np.array([[_sampled_series(problem, s, j, k).max() for k in problem.kinds] for j in range(config.N_JOINTS)])
+
+
 def _sample_excess(problem: DockingProblem, s: dict) -> np.ndarray:
-    """Sampled ``max |quantity| / limit − 1`` of every limit column (8, 3)."""
-    lim = problem.limits
-    return np.stack([
-        np.max(np.abs(s["position"] - problem.home), 0) / lim[:, 0],
-        np.max(np.abs(s["velocity"]), 0) / lim[:, 1],
-        np.max(np.abs(s["acceleration"]), 0) / lim[:, 2],
-    ], 1) - 1.0
+    """Sampled ``max |quantity| / limit − 1`` of every limit column (8, kinds)."""
+    return _sampled_peaks(problem, s) / np.asarray(problem.limits) - 1.0
 
 
 METHODS = ("direct",) + tuple(ALGORITHMS)
@@ -187,7 +191,7 @@ def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
     m = res.front[0]
     if not m.any():
         j = int(np.argmin(res.cv[0]))
-        G = res.G[0][j].reshape(config.N_JOINTS, 3)
+        G = robot.by_kind(res.G[0][j])
         jj, kk = np.unravel_index(np.argmax(G), G.shape)
         raise PlanError.of_column(
             problem, int(jj), int(kk), f"no feasible trajectory found by {method}: the limit {{limit}} cannot be met "
@@ -211,7 +215,7 @@ def _certify(problem: DockingProblem, x, rate: float) -> dict:
     and every kernel column (never understated) within its limit, else :class:`PlanError`
     naming the worst column."""
     s = problem.decode(x).sample(rate)
-    g = problem.evaluate(np.asarray(x)[None], screen=False)[1][0].reshape(config.N_JOINTS, 3)
+    g = robot.by_kind(problem.evaluate(np.asarray(x)[None], screen=False)[1][0])
     excess = np.maximum(_sample_excess(problem, s), g)
     if excess.max() > 0:
         j, k = np.unravel_index(np.argmax(excess), excess.shape)
@@ -240,17 +244,16 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
     difference). For a fixed-T plan ``d_jerk_d_T`` is the value of time (the multiplier of
     the cap), checked the same way."""
     sens = solve.sensitivities(problem, sol)
-    G = sol.G.reshape(8, 3)
+    G = robot.by_kind(sol.G)
     cap = None if time_optimal else float(sol.F[0])
     objective = 0 if time_optimal else 1
     lim = np.asarray(problem.limits)
-    keys = ("travel", "velocity", "acceleration")
+    keys = [kind.name for kind in problem.kinds]
     rows = []
     for j, k in zip(*np.nonzero(G > -BINDING)):
         name = config.JOINT_NAMES[j]
-        series = {0: np.abs(samples["position"][:, j] - problem.home[j]), 1: np.abs(samples["velocity"][:, j]),
-                  2: np.abs(samples["acceleration"][:, j])}[k]
-        row = {"limit": f"{name} {config.QUANTITIES[k]}", "joint": name, "quantity": config.QUANTITIES[k],
+        series = _sampled_series(problem, samples, j, problem.kinds[k])
+        row = {"limit": f"{name} {keys[k]}", "joint": name, "quantity": keys[k],
                "value": float(lim[j, k]), "unit": config.unit(j, k),
                "ratio": float(G[j, k] + 1.0), "time_s": float(samples["t"][int(np.argmax(series))]),
                "sensitivity": float(sens[j, k])}
@@ -394,7 +397,7 @@ def _too_short(problem: DockingProblem, shortest: solve.Solution, duration: floa
     by its sensitivity), or the interval bounds when no limit binds, and the time."""
     T = float(shortest.F[0])
     head = f"no trajectory takes {duration:g} s: the shortest feasible time is {T:.6g} s"
-    G = np.asarray(shortest.G).reshape(config.N_JOINTS, 3)
+    G = robot.by_kind(shortest.G)
     sens = np.abs(solve.sensitivities(problem, shortest)) * (G > -BINDING)
     if sens.max() > 0:
         j, k = np.unravel_index(np.argmax(sens), sens.shape)
@@ -496,7 +499,7 @@ class Planner:
         X = solve.map_to(problem, self.problem, self._template)
         _, G = problem.evaluate(X)
         need = solve.scaling_need(G)
-        ok = G.reshape(len(X), config.N_JOINTS, 3)[:, :, 0].max(1) <= 0
+        ok = robot.by_kind(G)[:, :, 0].max(1) <= 0
         X = np.array([solve.time_scale(problem, x, s * (1 + 1e-9)) for x, s in zip(X, need)])
         ok &= np.all(X[:, : problem.n_intervals] <= problem.upper[: problem.n_intervals], 1)
         if not ok.any():
@@ -562,7 +565,7 @@ def _write_plan_files(p: Plan, out: Path) -> list[Path]:
         "settings": {**p.settings, "start": p.problem.start.tolist(), "goal": p.problem.goal.tolist(),
                      "arm_distance": p.problem.arm_distance,
                      "interval_bounds": list(p.problem.interval_bounds), "n_control": p.problem.n_control,
-                     "limits": {q: p.problem.limits[:, k].tolist() for k, q in enumerate(config.QUANTITIES)},
+                     "limits": {q.name: p.problem.limits[:, k].tolist() for k, q in enumerate(p.problem.kinds)},
                      "home": p.problem.home.tolist()},
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")

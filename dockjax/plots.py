@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from . import config
+from . import config, robot
 from .io import atomic_write
 
 __all__ = ["save", "plot_fronts", "plot_left_arm", "plot_joints", "plot_convergence", "plot_heatmap",
@@ -94,17 +94,21 @@ def plot_left_arm(samples: dict[str, dict[str, np.ndarray]], path) -> Path:
 
 
 def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, title="", home=None) -> Path:
-    """The eight joints' travel about home, velocity and acceleration as fractions of their
-    limits (one panel each, limits ±1 dashed). sample: {"t", "position", "velocity",
-    "acceleration"} (m, 8); limits (8, 3); home (8,) (default: the midpoint of the first
-    and last positions)."""
-    fig, axes = _axes(3, 1, figsize=(9, 9), sharex=True)
+    """The eight joints' travel about home, velocity, acceleration (and, with a jerk column,
+    jerk) as fractions of their limits (one panel per kind of limit, limits ±1 dashed).
+    sample: {"t", "position", "velocity", "acceleration", "jerk"} (m, 8); limits (8, kinds)
+    (columns as :data:`dockjax.robot.LIMIT_KINDS`); home (8,) (default: the midpoint of the
+    first and last positions)."""
+    limits = np.asarray(limits)
+    kinds = robot.kinds_of(limits.shape[1])
+    fig, axes = _axes(len(kinds), 1, figsize=(9, 3 * len(kinds)), sharex=True)
     m = len(sample["t"])
     pick = np.unique(np.append(np.arange(0, m, max(1, -(-m // MAX_PLOT_POINTS))), m - 1))
     pos = sample["position"]
     home = 0.5 * (pos[0] + pos[-1]) if home is None else np.asarray(home)
-    series = ((pos - home) / limits[:, 0], sample["velocity"] / limits[:, 1], sample["acceleration"] / limits[:, 2])
-    names = ("travel about home / limit", "velocity / limit", "acceleration / limit")
+    series = [((pos - home) if k.order == 0 else sample[robot.DERIVATIVES[k.order]]) / limits[:, i]
+              for i, k in enumerate(kinds)]
+    names = [("travel about home" if k.order == 0 else k.name) + " / limit" for k in kinds]
     t = sample["t"][pick]
     for ax, y, name in zip(axes, series, names):
         for j in range(8):

@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import checks, config, extrema
+from . import checks, config, extrema, robot
 from . import devices as dev
 from .decoding import decode, span_angles, spans
 from .kinematics import inverse_kinematics
@@ -68,6 +68,9 @@ class DockingProblem:
     * ``travel``, ``velocity``, ``acceleration``: limits of Table 2, 4 numbers in the arm
       joint order (axial, lift, lateral, roll), applied to both arms, or 8 numbers in the
       joint order ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``.
+    * ``jerk``: optional |jerk| limits (mm/s³, °/s³), 4 or 8 numbers like ``velocity``;
+      default None: no jerk limits (the paper's 24 columns). With them, G has 32 columns:
+      each joint's travel, velocity, acceleration and jerk (:attr:`column_names`).
     * ``home``: (8,) joint home positions for the travel limits; default the midpoint of
       each joint's start and goal values.
     * ``margin``: relative margin of the control-point box (conventions §3).
@@ -104,10 +107,12 @@ class DockingProblem:
       (3 to 64); default None: 8, 12 or 24 from the box's range of pitch and yaw, enough
       for 1e-9 relative (:data:`dockjax.objectives.JERK_NODES`).
 
-    Attributes: ``n_var``, ``n_intervals`` (n + 1), ``n_obj`` (2), ``n_con`` (24), ``lower``, ``upper`` (natural
-    units, conventions §3 order), ``limits`` (8, 3), and the arguments in resolved form: ``start``,
-    ``goal`` (6,), ``arm_distance``, ``interval_bounds`` (a pair of floats), ``travel``,
-    ``velocity``, ``acceleration``, ``home`` (8,), ``margin``, ``reduced``, ``right_arm``
+    Attributes: ``n_var``, ``n_intervals`` (n + 1), ``n_obj`` (2), ``kinds`` (the limit kinds,
+    :data:`dockjax.robot.LIMIT_KINDS`), ``n_con`` (8 per kind: 24, or 32 with jerk limits),
+    ``column_names``, ``lower``, ``upper`` (natural units, conventions §3 order), ``limits``
+    (8, kinds), and the arguments in resolved form: ``start``, ``goal`` (6,), ``arm_distance``,
+    ``interval_bounds`` (a pair of floats), ``travel``, ``velocity``, ``acceleration``,
+    ``jerk`` ((8,) or None), ``home`` (8,), ``margin``, ``reduced``, ``right_arm``
     (never ``"auto"``), ``jerk_nodes`` (an int).
 
     The problem is a JAX pytree (a frozen dataclass): its arrays and numbers are leaves,
@@ -116,7 +121,6 @@ class DockingProblem:
     """
 
     n_obj: ClassVar[int] = 2
-    n_con: ClassVar[int] = config.N_CON
 
     start: Any = config.START
     goal: Any = config.GOAL
@@ -125,6 +129,7 @@ class DockingProblem:
     travel: Any = config.TRAVEL
     velocity: Any = config.VELOCITY
     acceleration: Any = config.ACCELERATION
+    jerk: Any = None
     home: Any = None
     margin: Any = config.MARGIN
     n_control: int = static(config.N_FREE)
@@ -153,6 +158,7 @@ class DockingProblem:
             raise ValueError(f"margin must be >= 0, got {mg}")
         names = ("travel", "velocity", "acceleration")
         travel, velocity, acceleration = (_per_joint(k, getattr(self, k)) for k in names)
+        jerk_a = None if self.jerk is None else _per_joint("jerk", self.jerk)
         limits = np.stack([travel, velocity, acceleration], axis=1)
         with jax.enable_x64(True):
             q0 = np.asarray(inverse_kinematics(start_a, d2))
@@ -186,7 +192,7 @@ class DockingProblem:
             upper = np.concatenate([h_hi, np.tile(box_hi, self.n_control)])
         for k, v in (("start", start_a), ("goal", goal_a), ("arm_distance", float(d2)),
                      ("interval_bounds", (float(lo), float(hi))), ("travel", travel), ("velocity", velocity),
-                     ("acceleration", acceleration), ("home", home_a), ("margin", float(mg)),
+                     ("acceleration", acceleration), ("jerk", jerk_a), ("home", home_a), ("margin", float(mg)),
                      ("reduced", bool(self.reduced)), ("box", (lower, upper))):
             set_(k, v)
         right_arm = self.right_arm
@@ -217,9 +223,33 @@ class DockingProblem:
 
     @property
     def limits(self):
-        """Limits (8 joints, 3): travel about home, |velocity|, |acceleration| (Table 2)."""
+        """The limit table (8 joints, kinds): travel about home, |velocity|, |acceleration|
+        (Table 2) and, with jerk limits, |jerk|; the columns follow :attr:`kinds`."""
         stack = jnp.stack if isinstance(self.travel, jax.Array) else np.stack
-        return stack([self.travel, self.velocity, self.acceleration], axis=1)
+        cols = [self.travel, self.velocity, self.acceleration] + ([] if self.jerk is None else [self.jerk])
+        return stack(cols, axis=1)
+
+    @property
+    def kinds(self) -> tuple:
+        """The limit kinds of the table's columns (:data:`dockjax.robot.LIMIT_KINDS`): travel,
+        velocity, acceleration, and jerk when the problem has jerk limits."""
+        return robot.kinds_of(self.n_kinds)
+
+    @property
+    def n_kinds(self) -> int:
+        """Limit kinds per joint: 3, or 4 with jerk limits."""
+        return robot.BASE_KINDS + (self.jerk is not None)
+
+    @property
+    def n_con(self) -> int:
+        """Limit columns of G: 8 joints × :attr:`n_kinds` (24, or 32 with jerk limits)."""
+        return config.N_JOINTS * self.n_kinds
+
+    @property
+    def column_names(self) -> list[str]:
+        """What each column of G bounds, joint-major: ``"d_L1 travel"``, ``"d_L1 velocity"``,
+        ..., ``"theta_R acceleration"`` (and each joint's ``"jerk"`` with jerk limits)."""
+        return robot.column_names(self.n_kinds)
 
     def pose_box(self) -> np.ndarray:
         """The control points' box (:func:`_control_box`), also in the reduced setting, so
@@ -232,8 +262,8 @@ class DockingProblem:
         for f in dataclasses.fields(self):
             if not f.init or f.name == "box":
                 continue
-            if f.name == "n_control" and self.n_control == config.N_FREE:
-                continue  # left out for the paper's family: its identity and the caches keyed on it need no such field
+            if (f.name == "n_control" and self.n_control == config.N_FREE) or (f.name == "jerk" and self.jerk is None):
+                continue  # left out at their defaults: the identities and the caches keyed on them stay as they were
             v = getattr(self, f.name)
             out[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple, list)) else v
         return out
@@ -270,6 +300,7 @@ class DockingProblem:
             f"DockingProblem(start={f(self.start)}, goal={f(self.goal)}, "
             f"arm_distance={self.arm_distance:g}, interval_bounds={self.interval_bounds}, "
             f"{f'n_control={self.n_control}, ' if self.n_control != config.N_FREE else ''}"
+            f"{f'jerk={f(self.jerk)}, ' if self.jerk is not None else ''}"
             f"n_var={self.n_var}{', reduced' if self.reduced else ''})"
         )
 
@@ -403,13 +434,21 @@ def _score_plain(problem: DockingProblem, X, screen: bool = False):
     return F.T, G.T, need, over, spans
 
 
+def right_columns(problem: DockingProblem) -> slice:
+    """The columns of G of the right arm's axial, lift and lateral joints (contiguous,
+    joint-major: 12..20, or 16..27 with jerk limits)."""
+    k = problem.n_kinds
+    return slice(robot.ATTITUDE_JOINTS.start * k, robot.ATTITUDE_JOINTS.stop * k)
+
+
 def _right_columns_taylor(problem: DockingProblem, X, screen: bool, active=None):
-    """G columns 12..20 (the right arm's axial, lift and lateral joints) of the rows of X
-    (n, n_var) by :func:`right_taylor_maxima`. → (n, 9)."""
+    """G's :func:`right_columns` (the right arm's axial, lift and lateral joints) of the rows
+    of X (n, n_var) by :func:`right_taylor_maxima`. → (n, 3 · kinds)."""
     h, _, c = jax.vmap(partial(decode, problem))(X)
     ref = jax.vmap(span_angles)(c, h)
     M = right_taylor_maxima(problem, c, h, ref, SCREEN_BAND if screen else None, active)
-    return columns(problem, jnp.zeros(M.shape[:1] + (8, 3), M.dtype).at[:, 4:7].set(M))[:, 12:21]
+    full = jnp.zeros(M.shape[:1] + (config.N_JOINTS, problem.n_kinds), M.dtype).at[:, robot.ATTITUDE_JOINTS].set(M)
+    return columns(problem, full)[:, right_columns(problem)]
 
 
 ADAPTIVE_CHUNK = 32
@@ -446,18 +485,24 @@ def _taylor_rows(problem: DockingProblem, X, G, mask, screen: bool):
     """``rows`` for :func:`_replace_rows`: the rows of G with the right arm's nonlinear
     columns from :func:`right_taylor_maxima` (only the flagged rows are scored)."""
     taylor = problem.with_right_arm("taylor")
-    return lambda idx: G[idx].at[:, 12:21].set(_right_columns_taylor(taylor, X[idx], screen, mask[idx]))
+    cols = right_columns(problem)
+    return lambda idx: G[idx].at[:, cols].set(_right_columns_taylor(taylor, X[idx], screen, mask[idx]))
 
 
-def _full_chain_rows(problem: DockingProblem, spans):
+def _full_chain_rows(problem: DockingProblem, spans, G):
     """``rows`` for :func:`_replace_rows`: G from every span of the screen's stored series
-    through the full root chain (the screen's overflow; no re-decoding)."""
+    through the full root chain (the screen's overflow; no re-decoding). The jerk columns,
+    never screened, are kept."""
     series, lengths, extra = spans
 
     def rows(idx):
-        vals, _ = extrema.span_maxima(series[idx], lengths[idx])  # (k, 48, 3)
+        vals, _ = extrema.span_maxima(series[idx], lengths[idx])  # (k, spans × joints, 3)
         M = vals.reshape(idx.shape[0], problem.n_intervals, -1, 3).max(axis=1) + extra[idx]
-        return columns(problem, M)
+        if problem.jerk is None:
+            return columns(problem, M)
+        base = columns(problem, M, problem.limits[:, :3]).reshape(M.shape)
+        jerk = G[idx].reshape(M.shape[:2] + (problem.n_kinds,))[..., 3:]
+        return jnp.concatenate([base, jerk], -1).reshape(idx.shape[0], -1)
 
     return rows
 
@@ -472,9 +517,9 @@ def _score_pass(problem: DockingProblem, X, screen: bool, taylor: bool):
     and the adaptive mode's ``need`` flags of the rows X."""
     F, G, need, over, spans = _score_plain(problem, X, screen)
     if spans is not None:
-        G = _replace_rows(G, over, _full_chain_rows(problem, spans), SCREEN_CHUNK)
+        G = _replace_rows(G, over, _full_chain_rows(problem, spans, G), SCREEN_CHUNK)
     if taylor:
-        G = G.at[:, 12:21].set(_right_columns_taylor(problem.with_right_arm("taylor"), X, screen))
+        G = G.at[:, right_columns(problem)].set(_right_columns_taylor(problem.with_right_arm("taylor"), X, screen))
     return F, G, need
 
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from . import bspline, extrema, kinematics
 from .config import DEG as _DEG
+from .robot import ATTITUDE_JOINTS
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
@@ -66,21 +67,32 @@ def hessian_norms(sin_a, sin_b):
     return jnp.stack([one, sin_a, jnp.minimum(one, sin_a + sin_b)], axis=-1)
 
 
-def remainder_bound(d2, hess, delta, vel, acc):
+THIRD_DERIVATIVE = math.sqrt(2.0)
+"""A bound of the third directional derivative ``|D³f[u, u, u]| / |u|³`` of ``cos a cos b``,
+``sin a`` and ``cos a sin b``: with ``cos a cos b = ½[cos(a+b) + cos(a−b)]`` it is
+``½(|u_1+u_2|³ + |u_1−u_2|³) <= ½ (2|u|²)^{3/2} = √2 |u|³`` (likewise for ``cos a sin b``;
+``|u_1|³ <= |u|³`` for ``sin a``)."""
+
+
+def remainder_bound(d2, hess, delta, vel, acc, jerk=None):
     """``D_2 ×`` bounds of the remainder of the first-order expansion and its first two
-    time derivatives: ``½Hδ²``, ``HδV``, ``H(δA + V²)`` (mean-value theorem). (..., 3 joints, 3)."""
+    time derivatives: ``½Hδ²``, ``HδV``, ``H(δA + V²)`` (mean-value theorem), and with
+    ``jerk`` (a bound J of the angles' third derivative) its third: ``HδJ + 3HVA + √2 V³``
+    (the remainder ``R = f(φ) − f(φ_m) − ∇f(φ_m)·(φ − φ_m)`` has third derivative
+    ``D³f[φ', φ', φ'] + 3 φ'ᵀ H φ'' + (∇f(φ) − ∇f(φ_m))·φ⁽³⁾``). (..., 3 joints, 3 or 4)."""
     h = hess
-    return d2 * jnp.stack(
-        [0.5 * h * delta[..., None] ** 2, h * (delta * vel)[..., None],
-         h * (delta * acc + vel * vel)[..., None]],
-        axis=-1,
-    )
+    cols = [0.5 * h * delta[..., None] ** 2, h * (delta * vel)[..., None],
+            h * (delta * acc + vel * vel)[..., None]]
+    if jerk is not None:
+        cols.append(h * (delta * jerk + 3.0 * vel * acc)[..., None] + THIRD_DERIVATIVE * (vel * vel * vel)[..., None])
+    return d2 * jnp.stack(cols, axis=-1)
 
 
 def linearisation_remainders(problem: "DockingProblem", c, h, ref):
     """Rigorous bounds, per span, of how far the right arm's axial, lift and lateral joints
     (and their first two derivatives) can be from their first-order expansion in pitch
-    and yaw about the span's middle. → (6 spans, 3 joints, 3 quantities), mm.
+    and yaw about the span's middle. → (s spans, 3 joints, kinds): travel, velocity,
+    acceleration (and jerk when the problem has jerk limits), in mm, mm/s, ...
 
     From the series of α and β re-centred at the span's middle,
     ``|α(t) − α_m| <= Σ_{m>=1} |a_m| (h/2)^m`` and likewise for the derivatives.
@@ -94,20 +106,24 @@ def linearisation_remainders(problem: "DockingProblem", c, h, ref):
     dev = sum(ang[m] * hp[m] for m in range(1, 6))  # (6, 2)
     vel = sum(m * ang[m] * hp[m - 1] for m in range(1, 6))
     acc = sum(m * (m - 1) * ang[m] * hp[m - 2] for m in range(2, 6))
+    jrk = sum(m * (m - 1) * (m - 2) * ang[m] * hp[m - 3] for m in range(3, 6)) if problem.jerk is not None else None
+
     def norm(v):  # Euclidean norm with a finite gradient (0) at 0
         s = jnp.sum(v * v, -1)
         return jnp.where(s > 0, jnp.sqrt(jnp.where(s > 0, s, 1.0)), 0.0)
 
     sin_bound = jnp.minimum(1.0, jnp.abs(sin_m) + dev)  # (6, 2)
     hess = hessian_norms(sin_bound[:, 0], sin_bound[:, 1])  # (6, 3)
-    return remainder_bound(problem.arm_distance, hess, norm(dev), norm(vel), norm(acc))
+    return remainder_bound(problem.arm_distance, hess, norm(dev), norm(vel), norm(acc),
+                           None if jrk is None else norm(jrk))
 
 
 def bound_overstatement(problem: "DockingProblem") -> float:
     """Worst-case overstatement (in units of the limit) of the ``"bound"`` treatment over
     the problem's decision box, from hull bounds of pitch and yaw and their derivatives: a
     B-spline stays in the hull of its control points, and its derivatives' control points
-    give ``|α'| <= 5 Δ/h_lo``, ``|α''| <= 40 Δ/h_lo²`` (Δ the box's range). Host-side
+    give ``|α'| <= 5 Δ/h_lo``, ``|α''| <= 40 Δ/h_lo²`` and ``|α⁽³⁾| <= 240 Δ/h_lo³`` (Δ the box's
+    range). Host-side
     (NumPy data of a constructed problem)."""
     box = problem.pose_box()
     rng = _DEG * (box[1, 3:5] - box[0, 3:5])
@@ -118,10 +134,10 @@ def bound_overstatement(problem: "DockingProblem") -> float:
         b = np.asarray(
             remainder_bound(
                 problem.arm_distance, hess, np.hypot(*rng), 5 * np.hypot(*rng) / h_lo,
-                40 * np.hypot(*rng) / h_lo**2,
+                40 * np.hypot(*rng) / h_lo**2, None if problem.jerk is None else 240 * np.hypot(*rng) / h_lo**3,
             )
         )
-    return float(np.max(2 * b / problem.limits[4:7]))
+    return float(np.max(2 * b / problem.limits[ATTITUDE_JOINTS]))
 
 
 TAYLOR_TIGHT = 1e-8
@@ -158,10 +174,11 @@ def _hyperbolic_jet6(w, r):
     return ch[6], sh[6]
 
 
-def _taylor_remainders(wa, wp, wm, trig, r, d2):
+def _taylor_remainders(wa, wp, wm, trig, r, d2, kinds: int = 3):
     """Bounds of ``|R|``, ``|R'|``, ``|R''|`` on ``|s| <= r`` of the remainders
     ``R(s) = q(t_c + s) − Σ_{k<=5} q_k s^k`` of the right arm's axial, lift and lateral
-    joints' Taylor series about t_c. → (..., 3 joints, 3) in mm, mm/s, mm/s².
+    joints' Taylor series about t_c. → (..., 3 joints, ``kinds``) in mm, mm/s, mm/s² (and
+    mm/s³ with 4 kinds).
 
     ``wa``, ``wp``, ``wm``: 5 arrays each, nonnegative majorants of the Taylor coefficients
     1..5 about t_c of α, α + β and α − β (rad); ``trig``: upper bounds of
@@ -188,7 +205,8 @@ def _taylor_remainders(wa, wp, wm, trig, r, d2):
                     0.5 * (sp * chp + cp * shp + sm * chm + cm * shm)], -1)  # d_R3: cos α sin β
     r2 = r * r
     r4 = r2 * r2
-    powers = jnp.stack([r4 * r2, 6.0 * r4 * r, 30.0 * r4], -1)  # 6! r^(6-i) / (6-i)!
+    powers = [r4 * r2, 6.0 * r4 * r, 30.0 * r4, 120.0 * r2 * r][:kinds]  # 6! r^(6-i) / (6-i)!
+    powers = jnp.stack(powers, -1)
     return (d2 * (1.0 + 1e-12)) * m6[..., :, None] * powers[..., None, :]
 
 
@@ -218,26 +236,27 @@ def _span_majorants(c, h, ref):
 
 def _taylor_anchors(problem: "DockingProblem", c, h, ref):
     """Twice the remainder bounds, in units of the limits, of a knot span cut into
-    ``2**a`` sub-spans, at the levels ``a`` of :data:`TAYLOR_ANCHORS`. → (6 spans, anchors,
-    3 joints, 3)."""
+    ``2**a`` sub-spans, at the levels ``a`` of :data:`TAYLOR_ANCHORS`. → (s spans, anchors,
+    3 joints, kinds)."""
     w, trig = _span_majorants(c, h, ref)
     anchors = np.asarray(TAYLOR_ANCHORS)
     r = h[:, None] * jnp.asarray(0.5 ** (anchors + 1), h.dtype)  # (6, A)
     col = lambda i: [a[:, i, None] for a in w]  # noqa: E731
-    rem = _taylor_remainders(col(0), col(1), col(2), [t[:, None] for t in trig], r, problem.arm_distance)
-    return 2.0 * rem / problem.limits[4:7]
+    rem = _taylor_remainders(col(0), col(1), col(2), [t[:, None] for t in trig], r, problem.arm_distance,
+                             problem.n_kinds)
+    return 2.0 * rem / problem.limits[ATTITUDE_JOINTS]
 
 
 def _taylor_levels(anchors, tol, top: int):
     """Subdivision level of each knot span: the fewest ``2**ℓ`` sub-spans for which twice the
-    remainder bound is at most ``tol`` (3 joints, 3; units of the limit; ``inf`` ignores a
+    remainder bound is at most ``tol`` (3 joints, kinds; units of the limit; ``inf`` ignores a
     column) for every column, at most ``top``. anchors: :func:`_taylor_anchors`. → (6,) int.
 
     From an anchor level a, a remainder bound at level ℓ >= a is at most the anchor's
     ``× 2^{−(6−i)(ℓ−a)}`` for the i-th derivative (the majorant's factor only shrinks with
     r), so each anchor gives a valid level in closed form; the smallest is taken."""
     a = np.asarray(TAYLOR_ANCHORS, np.int32)[None, :, None, None]
-    order = np.array([6, 5, 4], np.int32)  # the remainder of the i-th derivative is O(r^(6−i))
+    order = np.array([6, 5, 4, 3][:anchors.shape[-1]], np.int32)  # the remainder of the i-th derivative is O(r^(6−i))
     # ratio <= 2**e (frexp's exponent: integer work, no float64 logarithm); inf and nan
     # ratios ask for the top level
     ratio = anchors / tol
@@ -247,7 +266,7 @@ def _taylor_levels(anchors, tol, top: int):
 
 
 def _taylor_subspans(problem: "DockingProblem", c, r, tc):
-    """Upper and lower bounds (B, 3 joints, 3) of the right arm's maxima on B sub-spans,
+    """Upper and lower bounds (B, 3 joints, kinds) of the right arm's maxima on B sub-spans,
     each of centre ``tc`` (local time in its knot span) and half-width ``r`` (B,), on the
     span of coefficients c (B, 6 powers, 6 coords). See :func:`right_taylor_maxima`."""
     raw = bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, 3:5], 1, 2), tc[:, None])  # 6 × (B, 2), °
@@ -257,15 +276,18 @@ def _taylor_subspans(problem: "DockingProblem", c, r, tc):
     q = right_terms(problem, c, tc[:, None], 5, ref)  # 3 × 6 × (B, 1)
     polys = jnp.stack([jnp.concatenate(t, -1) for t in q], 1)  # (B, 3, 6) about t_c
     first = jnp.stack(bspline.poly_taylor_terms(polys, -r[:, None]), -1)  # about t_c − r
-    first = first.at[..., 0].add(-problem.home[4:7])
-    vals, _ = extrema.span_maxima(first, jnp.broadcast_to(2.0 * r[:, None], first.shape[:2]))
+    first = first.at[..., 0].add(-problem.home[ATTITUDE_JOINTS])
+    width = jnp.broadcast_to(2.0 * r[:, None], first.shape[:2])
+    vals, _ = extrema.span_maxima(first, width)
+    if problem.jerk is not None:
+        vals = jnp.concatenate([vals, extrema.jerk_maxima(first, width)[..., None]], -1)
     ang = [_DEG * jnp.stack([a[:, 0], a[:, 0] + a[:, 1], a[:, 0] - a[:, 1]], -1) for a in raw]
     w = [jnp.abs(a) for a in ang[1:]]
     _, sin_c, cos_c = ref
     trig = [jnp.minimum(1.0, jnp.abs(v) + 1e-15)
             for v in _angle_sums(sin_c[:, 0], cos_c[:, 0], sin_c[:, 1], cos_c[:, 1])]
     rem = _taylor_remainders([a[:, 0] for a in w], [a[:, 1] for a in w], [a[:, 2] for a in w],
-                             trig, r, problem.arm_distance)  # (B, 3 joints, 3)
+                             trig, r, problem.arm_distance, problem.n_kinds)  # (B, 3 joints, kinds)
     return vals + rem, vals - rem
 
 
@@ -274,7 +296,7 @@ def _taylor_pass(problem: "DockingProblem", c, h, levels):
     into ``2**levels[i, k]`` sub-spans (none where the level is −1); the sub-spans of all
     rows form one queue, scored :data:`TAYLOR_ROUND` at a time in a ``lax.while_loop``
     (so the trip count is the batch's total work, not its largest row's). → per span upper
-    bounds (n, s, 3, 3) (0 where not cut) and per row lower bounds (n, 3, 3); s spans per row."""
+    bounds (n, s, 3, kinds) (0 where not cut) and per row lower bounds (n, 3, kinds); s spans per row."""
     n, s = h.shape
     dtype = c.dtype
     count = jnp.where(levels >= 0, jnp.left_shift(1, jnp.maximum(levels, 0)), 0).reshape(-1)  # (n·6,)
@@ -297,10 +319,11 @@ def _taylor_pass(problem: "DockingProblem", c, h, levels):
         low = jnp.where(valid[:, None, None], low, 0.0)
         return g + 1, upper.at[item].max(up), lower.at[item // s].max(low)
 
-    init = (jnp.zeros((), ends.dtype), jnp.zeros((n * s, 3, 3), dtype),
-            jnp.zeros((n, 3, 3), dtype))
+    k = problem.n_kinds
+    init = (jnp.zeros((), ends.dtype), jnp.zeros((n * s, 3, k), dtype),
+            jnp.zeros((n, 3, k), dtype))
     _, upper, lower = jax.lax.while_loop(lambda carry: carry[0] * TAYLOR_ROUND < total, body, init)
-    return upper.reshape(n, s, 3, 3), lower
+    return upper.reshape(n, s, 3, k), lower
 
 
 def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None = None, active=None):
@@ -309,7 +332,7 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
 
     c: (n, 6 spans, 6 powers, 6 coords), h: (n, 6), ref: :func:`dockjax.decoding.span_angles` of each row
     ((n, 6, 2) each); ``active`` (n,) bool: rows to score (default all; the others return
-    0). → (n, 3 joints, 3).
+    0). → (n, 3 joints, kinds): travel, |velocity|, |acceleration| (and |jerk|).
 
     On a sub-span of centre t_c and half-width r, the joint is its degree-5 Taylor
     polynomial about t_c (Taylor-mode arithmetic, :func:`right_terms`) plus a remainder
@@ -327,9 +350,10 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
     bounds reach within that fraction of the limit (the screen's
     :data:`dockjax.limits.SCREEN_BAND`), else (None) every column. A span's
     value is the smaller of its two passes' bounds (both are upper bounds)."""
-    lim = problem.limits[4:7]
-    anchors = jax.vmap(partial(_taylor_anchors, problem))(c, h, ref)  # (n, 6, A, 3, 3)
-    loose = jax.vmap(lambda a: _taylor_levels(a, jnp.full((3, 3), TAYLOR_LOOSE, c.dtype), TAYLOR_LEVELS))(anchors)
+    lim = problem.limits[ATTITUDE_JOINTS]
+    shape = (3, problem.n_kinds)
+    anchors = jax.vmap(partial(_taylor_anchors, problem))(c, h, ref)  # (n, s, A, 3, kinds)
+    loose = jax.vmap(lambda a: _taylor_levels(a, jnp.full(shape, TAYLOR_LOOSE, c.dtype), TAYLOR_LEVELS))(anchors)
     if active is not None:
         loose = jnp.where(active[:, None], loose, -1)
     U1, lo = _taylor_pass(problem, c, h, loose)
@@ -339,8 +363,8 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
         if band is not None:
             far = (top < (1.0 - band) * lim) | (lo > (1.0 + band) * lim)
         else:
-            far = jnp.zeros((3, 3), bool)
-        open_ = ~far[None] & (U1 - lo[None] > TAYLOR_TIGHT * lim[None])  # (6, 3, 3)
+            far = jnp.zeros(shape, bool)
+        open_ = ~far[None] & (U1 - lo[None] > TAYLOR_TIGHT * lim[None])  # (s, 3, kinds)
         tol = jnp.where(open_, TAYLOR_TIGHT, jnp.inf)
         tight = jax.vmap(lambda a, t: _taylor_levels(a[None], t, TAYLOR_TIGHT_LEVELS)[0])(anchors, tol)
         return jnp.where(jnp.any(open_, axis=(1, 2)) & (tight > loose), tight, -1)

@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import minimize
 
-from . import config, extrema
+from . import config, extrema, robot
 from .bspline import insert_knots, poly_derivative, poly_eval, split_counts
 from .decoding import spans
 from .fusion import materialize
@@ -45,23 +45,34 @@ from .limits import joint_series
 from .objectives import jerk
 from .problem import DockingProblem
 from .right_arm import linearisation_remainders
+from .robot import ATTITUDE_JOINTS, by_kind
 
 __all__ = ["Solution", "PlanError", "candidate_limits", "critical_times", "straight_line", "least_jerk",
            "least_jerk_front", "map_to", "refine_family", "min_time", "min_jerk", "shortest", "certify_scaling",
            "infeasibility",
-           "scaling_need", "scaling_needs", "sensitivities", "time_scale"]
+           "scaling_need", "scaling_needs", "sensitivities", "time_scale", "critical_values"]
 
 
 CRITICAL_VALUES = 15
-"""Limit constraints per knot span and joint: 6 travel, 5 velocity and 4 acceleration
-values at critical times (:func:`candidate_limits`); a problem has ``n_intervals × 8 × 15``
-(720 in the paper's family)."""
+"""Limit constraints per knot span and joint without jerk limits: 6 travel, 5 velocity and 4
+acceleration values at critical times (:func:`candidate_limits`); a problem has
+``n_intervals × 8 × 15`` (720 in the paper's family)."""
+JERK_VALUES = 3
+"""Jerk constraints per knot span and joint of a problem with jerk limits: the jerk (a
+quadratic) at the span's ends and its vertex."""
+
+
+def critical_values(problem: DockingProblem) -> int:
+    """Limit constraints per knot span and joint: :data:`CRITICAL_VALUES`, plus
+    :data:`JERK_VALUES` with jerk limits."""
+    return CRITICAL_VALUES + (JERK_VALUES if problem.jerk is not None else 0)
 
 
 @dataclass(frozen=True)
 class Solution:
     """One solved programme. ``x`` (n_var,) certified (kernel-feasible), ``F`` (2,) its
-    (T, jerk), ``G`` (24,) its kernel columns; ``multipliers`` (n_intervals, 8, 15) the Lagrange
+    (T, jerk), ``G`` (n_con,) its kernel columns; ``multipliers`` (n_intervals, 8,
+    :func:`critical_values`) the Lagrange
     multipliers of the span constraints at the solver's point (objective scaled as in
     ``objective_scale``), ``scaled`` the time scaling applied to certify (1.0: none),
     ``cap_multiplier`` that of the time cap (jerk programme; ``d jerk*/d T = −scale · it``),
@@ -86,24 +97,28 @@ class Solution:
 def critical_times(problem: DockingProblem, x):
     """The critical times of :func:`candidate_limits` at x: per span and joint the travel's
     (6), the velocity's (5) and the acceleration's (4) candidate times ``τ ∈ [0, h]`` of
-    :func:`dockjax.extrema.chain_extrema`, each with a flag that it is the span's end."""
+    :func:`dockjax.extrema.chain_extrema` (and, with jerk limits, the jerk's 3 of
+    :func:`dockjax.extrema.jerk_times`), each with a flag that it is the span's end."""
     h, _, c, ref = spans(problem, x)
-    polys = joint_series(problem, c, h, ref)
-    hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
-    (tt, _), (vt, _), at = extrema.chain_extrema(jax.lax.stop_gradient(polys), jax.lax.stop_gradient(hh))
-    return tuple((t, t == hh[..., None]) for t in (tt, vt, at))
+    polys = jax.lax.stop_gradient(joint_series(problem, c, h, ref))
+    hh = jax.lax.stop_gradient(jnp.broadcast_to(h[:, None], polys.shape[:2]))
+    (tt, _), (vt, _), at = extrema.chain_extrema(polys, hh)
+    times = (tt, vt, at) if problem.jerk is None else (tt, vt, at, extrema.jerk_times(poly_derivative(polys, 3), hh))
+    return tuple((t, t == hh[..., None]) for t in times)
 
 
 def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
-    """The limit constraints at every critical time, x (n_var,) → (s spans, 8 joints, 15).
+    """The limit constraints at every critical time, x (n_var,) → (s spans, 8 joints,
+    :func:`critical_values`).
 
     Per span and joint: the travel at the span's ends and the roots of the velocity (6
     values), the velocity at the ends and the roots of the acceleration (5), the
-    acceleration at the ends and the roots of the jerk (4) (:func:`critical_times`), each
-    as ``(q/L)² − (1 − r/L)² ≤ 0`` with ``r`` the right arm's linearisation remainder (0
+    acceleration at the ends and the roots of the jerk (4) (and with jerk limits the jerk at
+    the ends and its vertex, 3) (:func:`critical_times`), each
+    as ``(q/L)² − (1 − r/L)|1 − r/L| ≤ 0`` with ``r`` the right arm's linearisation remainder (0
     elsewhere): smooth in x (the interior times carry no derivative, envelope theorem; a
     span's end moves with its interval), and ``max ≤ 0`` over the 15 is the kernel's
-    ``"bound"`` feasibility up to the roots' certified widths. ``limits`` (8, 3) replaces
+    ``"bound"`` feasibility up to the roots' certified widths. ``limits`` (8, kinds) replaces
     the problem's (for derivatives in them); ``times`` (:func:`critical_times`, default
     at x) holds the times fixed, so that derivatives need not trace the root searches."""
     L = problem.limits if limits is None else limits
@@ -114,9 +129,14 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
     vals = [poly_eval(poly_derivative(polys, k)[..., None, :] if k else polys[..., None, :],
                       jnp.where(end, hh[..., None], jax.lax.stop_gradient(t)))
             for k, (t, end) in enumerate(times)]
-    rem = linearisation_remainders(problem, c, h, ref)  # (s, 3, 3)
-    extra = jnp.zeros(polys.shape[:2] + (3,), polys.dtype).at[:, 4:7].set(rem)
-    out = [(v / L[:, k, None]) ** 2 - (1.0 - extra[..., k, None] / L[:, k, None]) ** 2 for k, v in enumerate(vals)]
+    rem = linearisation_remainders(problem, c, h, ref)  # (s, 3, kinds)
+    extra = jnp.zeros(polys.shape[:2] + (problem.n_kinds,), polys.dtype).at[:, ATTITUDE_JOINTS].set(rem)
+    out = []
+    for k, v in enumerate(vals):
+        room = 1.0 - extra[..., k, None] / L[:, k, None]
+        # room·|room|, written so that its value and derivative are those of room² where
+        # room >= 0: the constraint then keeps growing as the remainder r passes the limit
+        out.append((v / L[:, k, None]) ** 2 - jnp.where(room >= 0.0, room ** 2, -(room ** 2)))
     return jnp.concatenate(out, -1)
 
 
@@ -172,24 +192,25 @@ def time_scale(problem: DockingProblem, x, s: float) -> np.ndarray:
 
 def scaling_needs(G) -> np.ndarray:
     """Per limit column, the exact time scaling ``s`` that brings it down to its limit:
-    G (..., 24) → (..., 8, 3). Velocities scale by ``1/s`` and accelerations by ``1/s²``,
-    so ``s`` is ``G + 1`` (the maximum over the limit) or its square root; travel does not
+    G (..., 8 · kinds) → (..., 8, kinds). A kind of time-scaling power p
+    (:data:`dockjax.robot.LIMIT_KINDS`: velocity 1, acceleration 2, jerk 3) scales by ``1/s^p``,
+    so ``s`` is the p-th root of ``G + 1`` (the maximum over the limit); travel does not
     scale (0)."""
-    G = np.asarray(G, np.float64)
-    r = G.reshape(G.shape[:-1] + (config.N_JOINTS, 3)) + 1.0
-    return np.stack([np.zeros_like(r[..., 0]), r[..., 1], np.sqrt(np.maximum(r[..., 2], 0.0))], -1)
+    r = by_kind(G) + 1.0
+    root = {0: np.zeros_like, 1: lambda v: v, 2: lambda v: np.sqrt(np.maximum(v, 0.0)), 3: np.cbrt}
+    return np.stack([root[k.power](r[..., i]) for i, k in enumerate(robot.kinds_of(r.shape[-1]))], -1)
 
 
 def scaling_need(G) -> np.ndarray:
-    """The least time scaling ``s ≥ 1`` after which no rate column of G (..., 24) exceeds
-    its limit (:func:`scaling_needs`). → (...,)."""
+    """The least time scaling ``s ≥ 1`` after which no rate column of G (..., 8 · kinds)
+    exceeds its limit (:func:`scaling_needs`). → (...,)."""
     return np.maximum(1.0, scaling_needs(G).max(axis=(-2, -1)))
 
 
 class PlanError(RuntimeError):
     """No trajectory meets the limits (the command line's exit code 1). The message names
     the limit; so do the attributes, where one limit is to blame: ``joint`` (e.g.
-    ``"d_L3"``), ``quantity`` (``"travel"``, ``"velocity"`` or ``"acceleration"``),
+    ``"d_L3"``), ``quantity`` (``"travel"``, ``"velocity"``, ``"acceleration"`` or ``"jerk"``),
     ``limit`` (its value) and ``unit``, and ``excess``, how far over the limit the best
     candidate found is (relative: 0.12 is 12 % over), or None where not measured."""
 
@@ -203,8 +224,8 @@ class PlanError(RuntimeError):
         """The error for limit column (joint ``j``, quantity ``k``): ``message`` follows
         ``"<joint> <quantity> (<limit> <unit>)"``."""
         limit, unit = float(np.asarray(problem.limits)[j, k]), config.unit(j, k)
-        name = f"{config.JOINT_NAMES[j]} {config.QUANTITIES[k]} ({limit:g} {unit})"
-        return cls(message.replace("{limit}", name), joint=config.JOINT_NAMES[j], quantity=config.QUANTITIES[k],
+        joint, kind = robot.JOINTS[j].name, robot.LIMIT_KINDS[k].name
+        return cls(message.replace("{limit}", f"{joint} {kind} ({limit:g} {unit})"), joint=joint, quantity=kind,
                    limit=limit, unit=unit, excess=excess)
 
 
@@ -214,7 +235,7 @@ def infeasibility(problem: DockingProblem) -> PlanError:
     allow, as a :class:`PlanError`."""
     x = straight_line(problem, [problem.n_intervals * problem.interval_bounds[1]])[0]
     F, G = problem.evaluate(x[None])
-    G3 = G[0].reshape(config.N_JOINTS, 3)
+    G3 = by_kind(G[0])
     if G3[:, 0].max() > 0:
         j = int(np.argmax(G3[:, 0]))
         return PlanError.of_column(problem, j, 0, "no trajectory meets the limit {limit}: the straight line "
@@ -230,8 +251,8 @@ def infeasibility(problem: DockingProblem) -> PlanError:
 def certify_scaling(problem: DockingProblem, x, max_rounds: int = 8):
     """The least exact time scaling ``s ≥ 1`` found by the kernel that makes x feasible.
 
-    Velocity columns scale by ``1/s`` and accelerations by ``1/s²`` exactly, travel not at
-    all; s starts from the kernel's columns and grows by a hair until the kernel (never
+    Velocity columns scale by ``1/s``, accelerations by ``1/s²`` and jerks by ``1/s³`` exactly,
+    travel not at all; s starts from the kernel's columns and grows by a hair until the kernel (never
     understated) says feasible. → ``(x_scaled, F, G, s)``, or ``None`` when a travel limit
     fails or the scaled intervals leave the decision box."""
     x = np.asarray(x, np.float64)
@@ -240,7 +261,7 @@ def certify_scaling(problem: DockingProblem, x, max_rounds: int = 8):
     for _ in range(max_rounds):
         if np.all(G <= 0):
             return x, F, G, s
-        if np.any(G.reshape(config.N_JOINTS, 3)[:, 0] > 0):
+        if np.any(by_kind(G)[:, 0] > 0):
             return None
         step = float(scaling_need(G)) * (1.0 + 1e-9)
         s *= step
@@ -264,7 +285,7 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
     top = np.ones_like(width)
     top[:n] -= room
     u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, top)
-    n_candidates = n * config.N_JOINTS * CRITICAL_VALUES
+    n_candidates = n * config.N_JOINTS * critical_values(problem)
     cache = {}
 
     def values(u):
@@ -318,7 +339,7 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
         else:
             mult[keep] = m[:n_kept]
     cap_mult = float(m[n_kept]) if cap is not None and m.size > n_kept else 0.0
-    return lo + np.clip(res.x, 0.0, top) * width, res, (mult.reshape(n, config.N_JOINTS, CRITICAL_VALUES), cap_mult)
+    return lo + np.clip(res.x, 0.0, top) * width, res, (mult.reshape(n, config.N_JOINTS, -1), cap_mult)
 
 
 DENSE_CONSTRAINTS = 720
@@ -427,13 +448,13 @@ def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
 
 @jax.jit
 def _limit_gradient(problem, x, lam):
-    """``∂/∂L Σ λ g(x; L)`` over the candidate constraints, at the problem's limits (8, 3)."""
+    """``∂/∂L Σ λ g(x; L)`` over the candidate constraints, at the problem's limits (8, kinds)."""
     times = critical_times(problem, x)
     return jax.grad(lambda L: jnp.sum(lam * candidate_limits(problem, x, L, times)))(problem.limits)
 
 
 def sensitivities(problem: DockingProblem, sol: Solution) -> np.ndarray:
-    """``d f* / d limit`` (8 joints, 3 quantities) in the objective's units per limit unit,
+    """``d f* / d limit`` (8 joints, kinds) in the objective's units per limit unit,
     by the envelope theorem: ``Σ λ_i ∂g_i/∂L`` over the candidate constraints at the
     solver's point, λ the SLSQP multipliers of ``sol`` (unscaled). Zero for limits that do
     not bind. For the time programme f* is T (s); for the jerk programme the jerk."""

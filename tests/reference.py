@@ -48,6 +48,7 @@ __all__ = [
     "reference_objectives",
     "dense_constraints",
     "dense_quantity_maxima",
+    "dense_columns",
     "dense_feasible",
     "dense_check",
 ]
@@ -231,14 +232,16 @@ def reference_objectives(x, start, goal, arm_distance: float, nodes: int = 20):
 
 
 def dense_quantity_maxima(
-    x, start, goal, arm_distance: float, home=None, n_samples: int = 20001, refine: int = 201
+    x, start, goal, arm_distance: float, home=None, n_samples: int = 20001, refine: int = 201, n_kinds: int = 3
 ) -> np.ndarray:
-    """Dense maxima (8, 3) of ``[|q − home|, |q'|, |q''|]`` over t ∈ [0, T].
+    """Dense maxima (8, n_kinds) of ``[|q − home|, |q'|, |q''|]``, and with ``n_kinds=4``
+    also of the jerk ``|q'''|``, over t ∈ [0, T].
 
     Samples ``n_samples`` evenly spaced instants plus every knot; then, per column,
     resamples ``refine`` points within one sample spacing either side of the largest sample
     (the result never exceeds the true maximum and is within round-off of it).
     """
+    assert n_kinds in (3, 4), n_kinds
     x = np.asarray(x, dtype=np.float64)
     kn = knots(x[:n_intervals_of(x)])
     T = kn[-1]
@@ -249,11 +252,11 @@ def dense_quantity_maxima(
 
     def quantities(tt):
         qd = joint_derivatives(x, start, goal, arm_distance, tt)
-        # (m, 8, 3): |q − home|, |q'|, |q''|
-        return np.stack([np.abs(qd[0] - home), np.abs(qd[1]), np.abs(qd[2])], axis=-1)
+        # (m, 8, n_kinds): |q − home|, |q'|, |q''| (and the jerk)
+        return np.stack([np.abs(qd[0] - home)] + [np.abs(qd[k]) for k in range(1, n_kinds)], axis=-1)
 
     vals = quantities(t)
-    arg = np.argmax(vals, axis=0)  # (8, 3)
+    arg = np.argmax(vals, axis=0)  # (8, n_kinds)
     best = np.max(vals, axis=0)
     if refine:
         spacing = T / (int(n_samples) - 1)
@@ -262,6 +265,17 @@ def dense_quantity_maxima(
             tt = np.clip(np.linspace(c - spacing, c + spacing, int(refine)), 0.0, T)
             best = np.maximum(best, np.max(quantities(tt), axis=0))
     return best
+
+
+def dense_columns(x, start, goal, arm_distance: float, limits, home=None, n_samples: int = 20001) -> np.ndarray:
+    """G (8 K,) by the dense check for a limit table ``limits`` (8, K): K = 3 (travel,
+    velocity, acceleration) or 4 (and jerk). Column ``K j + k`` = max_t |quantity| / limit − 1
+    (joint-major; travel about ``home``)."""
+    limits = np.asarray(limits, dtype=np.float64)
+    assert limits.shape in ((N_JOINTS, 3), (N_JOINTS, 4)), limits.shape
+    maxima = dense_quantity_maxima(x, start, goal, arm_distance, home=home, n_samples=n_samples,
+                                   n_kinds=limits.shape[1])
+    return (maxima / limits - 1.0).reshape(-1)
 
 
 def dense_constraints(
@@ -307,10 +321,10 @@ def dense_feasible(
 def dense_check(problem, X, n_samples: int = 20001):
     """The dense check of a whole population for any problem-like object.
 
-    ``problem`` needs ``start``, ``goal``, ``arm_distance``, ``limits`` (8, 3), ``home`` (8,)
-    and ``n_var``; nothing of it is called, so no dockjax code runs. X: (n, n_var), in
-    the reduced setting (n_var 6) the interior points are put on the line. Returns
-    ``(G (n, 24), feasible (n,) bool)``.
+    ``problem`` needs ``start``, ``goal``, ``arm_distance``, ``limits`` (8, K: 3, or 4 with
+    jerk limits), ``home`` (8,) and ``n_var``; nothing of it is called, so no dockjax code
+    runs. X: (n, n_var), in the reduced setting (n_var 6) the interior points are put on the
+    line. Returns ``(G (n, 8 K), feasible (n,) bool)`` (8 K = 24 without jerk limits).
     """
     X = np.atleast_2d(np.asarray(X, dtype=np.float64))
     limits = np.asarray(problem.limits, dtype=np.float64)
@@ -320,11 +334,7 @@ def dense_check(problem, X, n_samples: int = 20001):
     for x in X:
         if getattr(problem, "reduced", x.shape == (N_INTERVALS,)):
             x = reduced_to_full(x, start, goal)
-        G.append(
-            dense_constraints(
-                x, start, goal, float(problem.arm_distance), limits[:, 0], limits[:, 1],
-                limits[:, 2], home=np.asarray(problem.home), n_samples=n_samples,
-            )
-        )
-    G = np.array(G).reshape(len(X), N_CON)
+        G.append(dense_columns(x, start, goal, float(problem.arm_distance), limits, home=np.asarray(problem.home),
+                               n_samples=n_samples))
+    G = np.array(G).reshape(len(X), N_JOINTS * limits.shape[1])
     return G, np.all(G <= 0.0, axis=1)

@@ -25,6 +25,7 @@ import numpy as np
 from .. import checks, config, metrics, plots, select
 from ..algorithms import get
 from ..io import atomic_write_text
+from ..robot import by_kind
 from .config import ConfigError, SweepConfig, size_errors
 from .design import Setting
 from .execute import problem_of
@@ -112,7 +113,7 @@ def _chosen(study: Study, run: int) -> dict[str, dict]:
         j = select.choose_type(F, kind)
         G = problem.evaluate(X[j][None], screen=False)[1][0]
         out[kind] = {"x": X[j], "T": float(F[j, 0]), "jerk": float(F[j, 1]),
-                     "maxima": (G.reshape(config.N_JOINTS, 3) + 1.0) * np.asarray(problem.limits)}
+                     "maxima": (by_kind(G) + 1.0) * np.asarray(problem.limits)}
     return out
 
 

@@ -1,0 +1,87 @@
+"""The robot as data: its joints and the kinds of limit a joint can carry (conventions §4, §6).
+
+* :data:`JOINTS`: the eight joints ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` with
+  their units and whether they depend on the cabin's attitude (pitch and yaw: the right
+  arm's axial, lift and lateral joints, :data:`ATTITUDE_JOINTS`); the pose → joints map is
+  :func:`dockjax.kinematics.arm_joints`.
+* :data:`LIMIT_KINDS`: travel, velocity, acceleration and jerk, each with the order of the
+  time derivative it bounds, its unit suffix and how it scales when the trajectory is
+  slowed by ``h → s h`` (by ``s^−power``). A problem's limit table has one column per kind it
+  uses (:attr:`dockjax.DockingProblem.kinds`), joint-major in G.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import config
+
+__all__ = ["Joint", "LimitKind", "JOINTS", "ATTITUDE_JOINTS", "LIMIT_KINDS", "BASE_KINDS", "DERIVATIVES", "kinds_of",
+           "column_names", "by_kind"]
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint: ``name``, ``unit`` (``"mm"`` or ``"deg"``) and ``attitude`` (its value
+    depends on pitch and yaw through sines and cosines, conventions §4)."""
+
+    name: str
+    unit: str
+    attitude: bool = False
+
+
+@dataclass(frozen=True)
+class LimitKind:
+    """One kind of limit: ``name``; ``order`` of the time derivative it bounds (travel 0:
+    the position about home); ``power``: slowing the trajectory by ``h → s h`` divides the
+    quantity by ``s**power`` (0: unchanged); ``suffix`` of its unit (``"/s^2"``)."""
+
+    name: str
+    order: int
+    power: int
+
+    @property
+    def suffix(self) -> str:
+        """The unit suffix of the ``order``-th time derivative (:data:`dockjax.config.RATE_SUFFIXES`)."""
+        return config.RATE_SUFFIXES[self.order]
+
+
+ATTITUDE_JOINTS = slice(4, 7)
+"""The joints whose values depend on the attitude: the right arm's axial, lift and lateral
+joints (contiguous in the joint order)."""
+
+JOINTS: tuple[Joint, ...] = tuple(
+    Joint(name, unit, ATTITUDE_JOINTS.start <= j < ATTITUDE_JOINTS.stop)
+    for j, (name, unit) in enumerate(zip(config.JOINT_NAMES, config.JOINT_UNITS)))
+"""The joints in the order of G, the samples and the CSV (conventions §4)."""
+
+LIMIT_KINDS: tuple[LimitKind, ...] = (
+    LimitKind("travel", 0, 0), LimitKind("velocity", 1, 1), LimitKind("acceleration", 2, 2), LimitKind("jerk", 3, 3),
+)
+"""Every kind of limit, in the order of a joint's columns."""
+
+DERIVATIVES: tuple[str, ...] = ("position", "velocity", "acceleration", "jerk")
+"""Names of a joint's time derivatives of order 0..3 (the keys of a plan's samples)."""
+
+BASE_KINDS = 3
+"""The kinds every problem has (paper Table 2: travel, velocity, acceleration); jerk is optional."""
+
+
+def kinds_of(n_kinds: int) -> tuple[LimitKind, ...]:
+    """The first ``n_kinds`` (3 or 4) of :data:`LIMIT_KINDS`."""
+    return LIMIT_KINDS[:n_kinds]
+
+
+def column_names(n_kinds: int) -> list[str]:
+    """Names of the ``8 · n_kinds`` columns of G, joint-major: ``"d_L1 travel"``,
+    ``"d_L1 velocity"``, ..."""
+    return [f"{j.name} {k.name}" for j in JOINTS for k in kinds_of(n_kinds)]
+
+
+def by_kind(G) -> np.ndarray:
+    """G (..., 8 · kinds) as a float64 array (..., 8 joints, kinds) (joint-major,
+    :func:`column_names`)."""
+    G = np.asarray(G, np.float64)
+    return G.reshape(G.shape[:-1] + (len(JOINTS), G.shape[-1] // len(JOINTS)))
