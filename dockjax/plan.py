@@ -163,9 +163,10 @@ def _shortest(problem: DockingProblem, x0=None) -> solve.Solution:
             x0 = solve.refine_family(problem, coarse, _shortest(coarse).x)
         except PlanError:
             x0 = None
-    if x0 is None:
-        x0 = solve.straight_line(problem, [problem.n_intervals * problem.interval_bounds[0]])[0]
-    sol = solve.shortest(problem, x0)
+    line = solve.straight_line(problem, [problem.n_intervals * problem.interval_bounds[0]])[0]
+    sol = solve.shortest(problem, line if x0 is None else x0)
+    if sol is None and x0 is not None:  # the finer family's solve failed from its start: from the line
+        sol = solve.shortest(problem, line)
     if sol is None:
         raise solve.infeasibility(problem)
     return sol

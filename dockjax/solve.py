@@ -232,7 +232,8 @@ class PlanError(RuntimeError):
 def infeasibility(problem: DockingProblem) -> PlanError:
     """Why no trajectory of the decision box meets the limits: the limit that the straight
     line (the move's natural candidate) misses even slowed as far as the interval bounds
-    allow, as a :class:`PlanError`."""
+    allow, as a :class:`PlanError`; or, when that line meets every limit, that the solver
+    failed."""
     x = straight_line(problem, [problem.n_intervals * problem.interval_bounds[1]])[0]
     F, G = problem.evaluate(x[None])
     G3 = by_kind(G[0])
@@ -240,6 +241,10 @@ def infeasibility(problem: DockingProblem) -> PlanError:
         j = int(np.argmax(G3[:, 0]))
         return PlanError.of_column(problem, j, 0, "no trajectory meets the limit {limit}: the straight line "
                                    f"already exceeds it by {100 * G3[j, 0]:.2f} %", excess=float(G3[j, 0]))
+    if np.all(G[0] <= 0):
+        return PlanError(f"the SQP found no certified trajectory, although the straight line at the longest "
+                         f"T = {F[0, 0]:g} s meets every limit: the solver failed on this problem (try fewer "
+                         f"control points or other interval bounds)")
     need = scaling_needs(G[0])
     j, k = np.unravel_index(np.argmax(need), need.shape)
     return PlanError.of_column(
