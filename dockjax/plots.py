@@ -289,8 +289,8 @@ def plot_tracking(result, joints, path, *, title: str = "", error: bool = True) 
 def worth_drawing(explanation: dict) -> list[dict]:
     """The binding limits of a plan whose value is more than rounding: a 1 % change of the
     limit moves the objective by more than 1e-6 of the largest such change (and by more
-    than 1e-12 at all)."""
-    rows = explanation.get("binding", [])
+    than 1e-12 at all); none whose sensitivity is unknown."""
+    rows = [r for r in explanation.get("binding", []) if r["sensitivity"] is not None]
     effect = [abs(0.01 * r["sensitivity"] * r["value"]) for r in rows]
     top = max(effect, default=0.0)
     return [r for r, e in zip(rows, effect) if e > max(1e-6 * top, 1e-12)]

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import lsq_linear, minimize
 
 from . import config, extrema, robot
 from .bspline import insert_knots, poly_derivative, poly_eval, split_counts
@@ -381,7 +381,8 @@ def _finish(problem, x, res, mult, scale):
 def _solve(problem, x0, kind, cap, scale, tol, max_iter, restarts):
     """SLSQP, certified; while the certificate had to slow the solver's point by more than
     :data:`SCALED_OK` (SLSQP stopped slightly outside the limits), up to ``restarts`` new
-    solves from the slowed, feasible trajectory. The best certified answer is returned."""
+    solves from the slowed, feasible trajectory, as long as each improves on the last. The
+    best certified answer is returned."""
     best, k = None, 0 if kind == "time" else 1
     room = 0.0
     for _ in range(1 + restarts):
@@ -395,12 +396,43 @@ def _solve(problem, x0, kind, cap, scale, tol, max_iter, restarts):
             sol = _finish(problem, x, res, mult, scale)
         if sol is None:
             break
-        if best is None or sol.F[k] < best.F[k]:
+        improved = best is None or sol.F[k] < best.F[k]
+        if improved:
             best = sol
-        if sol.scaled <= 1.0 + SCALED_OK:
+        if sol.scaled <= 1.0 + SCALED_OK or not improved:  # no gain: a new solve from the best repeats its own
             break
         x0 = sol.x
     return best
+
+
+ACTIVE = 1e-6
+"""A limit constraint above ``−ACTIVE`` counts as active in :func:`_multipliers_at`."""
+STATIONARY = 1e-3
+"""Largest relative residual of :func:`_multipliers_at`'s fit for which the point counts as
+stationary (its multipliers, and so its sensitivities, known)."""
+
+
+def _multipliers_at(problem, x, scale):
+    """Lagrange multiplier estimates of the time programme at a feasible ``x`` that is not
+    the solver's point: the non-negative least-squares fit of the objective's gradient by
+    the active limit constraints' and box bounds' gradients (SciPy's ``lsq_linear``, BVLS),
+    ``∇f + Σ λ_i ∇g_i − Σ ν_j e_j + Σ ν_k e_k ≈ 0``. → (n_intervals, 8, critical_values);
+    NaN when the fit leaves more than :data:`STATIONARY` of ``|∇f|`` (x is not a KKT point:
+    the sensitivities are unknown)."""
+    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
+    u = (np.asarray(x, np.float64) - lo) / (hi - lo)
+    with jax.enable_x64(True):
+        _, fg, gv, gj = (np.asarray(a, np.float64) for a in _values(problem, u, np.float64(scale), np.float64(1.0)))
+    active = gv > -ACTIVE
+    eye = np.eye(u.size)
+    A = np.concatenate([gj[active], -eye[u <= 1e-12], eye[u >= 1.0 - 1e-12]]).T
+    lam = lsq_linear(A, -fg, bounds=(0.0, np.inf), method="bvls").x
+    if np.linalg.norm(A @ lam + fg) > STATIONARY * np.linalg.norm(fg):
+        return np.full((problem.n_intervals, config.N_JOINTS, gv.size // (problem.n_intervals * config.N_JOINTS)),
+                       np.nan)
+    mult = np.zeros(gv.size)
+    mult[active] = lam[: int(active.sum())]
+    return mult.reshape(problem.n_intervals, config.N_JOINTS, -1)
 
 
 def min_time(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int = 200,
@@ -409,13 +441,24 @@ def min_time(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     ``min Σ h`` subject to the candidate constraints (:func:`candidate_limits`), in the unit
     box. ``x0`` is first made feasible by time scaling (:func:`certify_scaling`), so the
     search starts inside. ``restarts``: fresh solves after a stop without convergence or
-    outside the limits. Returns None when no certified trajectory is found (travel
+    outside the limits. The answer is never slower than the certified start: when the
+    SQP ends slower, the start is returned, with multiplier estimates
+    (:func:`_multipliers_at`). Returns None when no certified trajectory is found (travel
     infeasible from x0)."""
     start = certify_scaling(problem, x0)
     if start is not None:
         x0 = start[0]
     scale = float(np.sum(np.asarray(x0)[: problem.n_intervals]))
-    return _solve(problem, x0, "time", None, scale, tol, max_iter, restarts)
+    sol = _solve(problem, x0, "time", None, scale, tol, max_iter, restarts)
+    if start is not None and (sol is None or sol.F[0] > start[1][0]):
+        # the SQP ended slower than its own (certified) start: the start is the answer
+        xs, F, G, s = start
+        sol = Solution(x=xs, F=np.asarray(F), G=np.asarray(G), x_solver=np.asarray(xs),
+                       multipliers=_multipliers_at(problem, xs, scale), cap_multiplier=0.0,
+                       objective_scale=scale, scaled=float(s), iterations=0 if sol is None else sol.iterations,
+                       success=False, message="no certified trajectory faster than the start found; "
+                       "multipliers estimated at the start")
+    return sol
 
 
 def min_jerk(problem: DockingProblem, x0, cap: float, *, tol: float = 1e-12, max_iter: int = 200,
@@ -462,7 +505,8 @@ def sensitivities(problem: DockingProblem, sol: Solution) -> np.ndarray:
     """``d f* / d limit`` (8 joints, kinds) in the objective's units per limit unit,
     by the envelope theorem: ``Σ λ_i ∂g_i/∂L`` over the candidate constraints at the
     solver's point, λ the SLSQP multipliers of ``sol`` (unscaled). Zero for limits that do
-    not bind. For the time programme f* is T (s); for the jerk programme the jerk."""
+    not bind; NaN when ``sol`` is a start kept by :func:`min_time` that is not a stationary
+    point. For the time programme f* is T (s); for the jerk programme the jerk."""
     with jax.enable_x64(True):
         lam = np.asarray(sol.multipliers * sol.objective_scale, np.float64)
         return np.asarray(_limit_gradient(problem, np.asarray(sol.x_solver, np.float64), lam))

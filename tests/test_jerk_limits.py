@@ -112,7 +112,7 @@ CONFIG = dict(
 """A configuration: start, attitude moves of tens of degrees, D2 from 100 mm to 10 m, jerk
 limits from 0.1 to 1e4 (4 for both arms, or 8), interval bounds from 0.1 s to hours, and a
 seed for the candidates."""
-ALL_MODE_FAMILIES = (3,) if settings.default.max_examples <= 25 else tuple(range(1, 7))
+ALL_MODE_FAMILIES = (2,) if settings.default.max_examples <= 25 else tuple(range(1, 7))
 """Families (n_control) checked in every mode: one by default (the plan test's), as the
 "taylor" and "adaptive" kernels take ~45 s to compile per family and ~9 s to trace and load
 from the persistent cache; every family from 1 to 6 under ``--hypothesis-profile thorough``.
@@ -156,7 +156,7 @@ def check_configuration(modes, n_control, pos, att, move, log_d2, log_jerk, per_
 
 @settings(max_examples=EXAMPLES, deadline=None)
 @given(n_control=st.sampled_from(ALL_MODE_FAMILIES), **CONFIG)
-@example(n_control=3, **CASE)
+@example(n_control=2, **CASE)
 def test_every_column_is_certified_in_every_mode(n_control, **cfg):
     check_configuration(MODES, n_control, **cfg)
 
@@ -252,9 +252,10 @@ def test_plan_command_refuses_bad_jerk_limits_in_one_line(tmp_path, capsys):
 
 # --------------------------------------------------------------------- 6. a plan
 def test_a_plan_with_jerk_limits_is_certified_by_the_reference():
-    p = DockingProblem(jerk=[10, 10, 1, 10], interval_bounds=(0.5, 30), n_control=3)
+    # the problem of benchmarks/bench_plan.py's quick form (which then reuses its compiled programs)
+    p = DockingProblem(jerk=[10, 10, 1, 10], interval_bounds=(0.05, 30), n_control=2)
     result = plan(p, rate=100.0, weights=(1.0, 0.0), n_front=2, check_sensitivities=False)  # shortest time
-    assert result.x.shape == (22,)
+    assert result.x.shape == (15,)
     jerk_limits = np.asarray(p.limits)[:, 3]
     sampled = np.asarray(result.samples["jerk"])
     assert sampled.ndim == 2 and sampled.shape[1] == 8 and len(sampled) == len(result.samples["t"])

@@ -27,16 +27,22 @@ from tests.test_right_arm_certified import _check, _problems, _scaled, _travel, 
 ROWS = 4
 
 
-def _reference_check(p: DockingProblem, X, F, G):
-    """F to 1e-9 relative and every G column in [dense − 1e-9, dense + 0.01] (reference only)."""
+def _reference(p: DockingProblem, X):
+    """The reference's F (rows, 2) and dense-sampled G (rows, 24) of the rows of X."""
     lim = np.asarray(p.limits)
-    for i, x in enumerate(X):
-        T, jerk = R.reference_objectives(x, p.start, p.goal, p.arm_distance)
-        np.testing.assert_allclose(F[i], [T, jerk], rtol=1e-9, err_msg=f"F of row {i}")
-        dense = R.dense_constraints(x, p.start, p.goal, p.arm_distance, lim[:, 0], lim[:, 1], lim[:, 2],
-                                    home=p.home, n_samples=10001)
-        assert np.all(G[i] >= dense - 1e-9), (i, np.min(G[i] - dense))
-        assert np.all(G[i] <= dense + 0.01), (i, np.max(G[i] - dense))
+    F = np.array([R.reference_objectives(x, p.start, p.goal, p.arm_distance) for x in X])
+    G = np.array([R.dense_constraints(x, p.start, p.goal, p.arm_distance, lim[:, 0], lim[:, 1], lim[:, 2],
+                                      home=p.home, n_samples=10001) for x in X])
+    return F, G
+
+
+def _reference_check(p: DockingProblem, X, F, G, reference=None):
+    """F to 1e-9 relative and every G column in [dense − 1e-9, dense + 0.01] (reference only)."""
+    F_ref, dense = _reference(p, X) if reference is None else reference
+    for i in range(len(X)):
+        np.testing.assert_allclose(F[i], F_ref[i], rtol=1e-9, err_msg=f"F of row {i}")
+        assert np.all(G[i] >= dense[i] - 1e-9), (i, np.min(G[i] - dense[i]))
+        assert np.all(G[i] <= dense[i] + 0.01), (i, np.max(G[i] - dense[i]))
 
 
 @pytest.mark.parametrize("n", [1, 64])
@@ -52,10 +58,11 @@ def test_scores_of_any_family_match_the_reference(n):
     m = R.dense_quantity_maxima(X[0], p.start, p.goal, p.arm_distance, home=p.home, n_samples=4001) / p.limits
     X[3] = _scaled(X[0], max(m[:, 1].max(), np.sqrt(m[:, 2].max())))
     X[3, : p.n_intervals] = np.minimum(X[3, : p.n_intervals], 1e3)
+    reference = _reference(p, X)
     for screen in (True, False):
         F, G = p.evaluate(X, screen=screen)
         assert F.shape == (ROWS, 2) and G.shape == (ROWS, 24)
-        _reference_check(p, X, F, G)
+        _reference_check(p, X, F, G, reference)
 
 
 def test_decoded_trajectory_is_the_reference_spline():

@@ -139,6 +139,32 @@ def test_sensitivities_match_replanning_with_the_limit_changed_by_one_percent(wi
         assert row["sensitivity"] == pytest.approx(row["finite_difference"], rel=0.05, abs=1e-4), row
 
 
+def test_a_time_solve_that_cannot_beat_its_start_returns_the_start_with_its_sensitivities(wide_time_plan,
+                                                                                        monkeypatch):
+    """``solve.min_time`` never answers slower than its certified start: when the SQP finds
+    nothing faster (here: nothing at all), the start comes back, with multipliers estimated
+    at it, whose sensitivities at the optimum are the SQP's (those checked against
+    re-planning above)."""
+    s = _summary(wide_time_plan)
+    monkeypatch.setattr(solve, "_solve", lambda *args, **kwargs: None)
+    sol = solve.min_time(WIDE, s["x"])
+    assert sol is not None and not sol.success and sol.iterations == 0
+    assert sol.F[0] == pytest.approx(s["T_s"], rel=1e-12) and np.all(sol.G <= 0)
+    np.testing.assert_allclose(sol.x, s["x"], rtol=1e-12)
+    sens = solve.sensitivities(WIDE, sol)
+    names = ["d_L1", "d_L2", "d_L3", "theta_L", "d_R1", "d_R2", "d_R3", "theta_R"]
+    rows = s["explanation"]["binding"]
+    assert rows
+    for row in rows:
+        j, k = names.index(row["joint"]), ("travel", "velocity", "acceleration").index(row["quantity"])
+        assert sens[j, k] == pytest.approx(row["sensitivity"], rel=0.02, abs=1e-3), row
+    # a start that is not a stationary point (the straight line at 3 s per interval, slowed
+    # until feasible): kept, but its sensitivities are unknown, not made up
+    slow = solve.min_time(WIDE, R.straight_line_x(WIDE.start, WIDE.goal, (3.0,) * 6))
+    assert slow is not None and slow.F[0] > s["T_s"] and np.all(slow.G <= 0)
+    assert np.isnan(solve.sensitivities(WIDE, slow)).all()
+
+
 def test_a_limit_that_does_not_bind_has_no_value(wide_time_plan):
     p = _summary(wide_time_plan)
     binding = {r["limit"] for r in p["explanation"]["binding"]}
