@@ -406,7 +406,8 @@ def _solve(problem, x0, kind, cap, scale, tol, max_iter, restarts):
 
 
 ACTIVE = 1e-6
-"""A limit constraint above ``−ACTIVE`` counts as active in :func:`_multipliers_at`."""
+"""A limit constraint above ``−ACTIVE``, or a box bound within ``ACTIVE`` (unit-box units),
+counts as active in :func:`_multipliers_at`."""
 STATIONARY = 1e-3
 """Largest relative residual of :func:`_multipliers_at`'s fit for which the point counts as
 stationary (its multipliers, and so its sensitivities, known)."""
@@ -425,7 +426,7 @@ def _multipliers_at(problem, x, scale):
         _, fg, gv, gj = (np.asarray(a, np.float64) for a in _values(problem, u, np.float64(scale), np.float64(1.0)))
     active = gv > -ACTIVE
     eye = np.eye(u.size)
-    A = np.concatenate([gj[active], -eye[u <= 1e-12], eye[u >= 1.0 - 1e-12]]).T
+    A = np.concatenate([gj[active], -eye[u <= ACTIVE], eye[u >= 1.0 - ACTIVE]]).T  # bounds within a certified hair
     lam = lsq_linear(A, -fg, bounds=(0.0, np.inf), method="bvls").x
     if np.linalg.norm(A @ lam + fg) > STATIONARY * np.linalg.norm(fg):
         return np.full((problem.n_intervals, config.N_JOINTS, gv.size // (problem.n_intervals * config.N_JOINTS)),
