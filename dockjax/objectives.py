@@ -17,7 +17,9 @@ from typing import TYPE_CHECKING
 import jax.numpy as jnp
 import numpy as np
 
+from .kinematics import arm_joints
 from .right_arm import right_terms
+from .robot import JOINTS
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
@@ -72,5 +74,8 @@ def mean_square_jerk(problem: "DockingProblem", c, h, ref):
                                                       + hk * (0.5 * b * q + hk * (q * q / 5.0))))), axis=0)
     # the right arm's third Taylor coefficients as separate arrays (no stacking: the
     # reverse pass, used by refinement, then fuses)
-    right = [jnp.sum(weights * (6.0 * j[3]) ** 2) for j in right_terms(problem, c, tau, 3, ref)]
-    return jnp.stack([lin[2], lin[1], lin[0], lin[5], *right, lin[5]]) / jnp.sum(h)
+    right = iter([jnp.sum(weights * (6.0 * j[3]) ** 2) for j in right_terms(problem, c, tau, 3, ref)])
+    # a joint that does not depend on the attitude is ± one pose coordinate (arm_joints with
+    # the cabin axis and arm distance zero), so its mean-square jerk is that coordinate's
+    linear = arm_joints(lin[0], lin[1], lin[2], lin[5], 0.0, 0.0, 0.0, 0.0)
+    return jnp.stack([next(right) if joint.attitude else jnp.abs(v) for joint, v in zip(JOINTS, linear)]) / jnp.sum(h)

@@ -282,13 +282,15 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
     h = np.asarray(sol.x[: problem.n_intervals])
     out = {"objective": "T_s" if time_optimal else "jerk", "binding": rows,
            "intervals_at_bounds": {"lower": int(np.sum(h <= problem.interval_bounds[0] * (1 + 1e-6))),
-                                   "upper": int(np.sum(h >= problem.interval_bounds[1] * (1 - 1e-6)))},
+                                   "upper": int(np.sum(h >= problem.interval_bounds[1] * (1 - 1e-6))),
+                                   "of": problem.n_intervals},
            "note": "sensitivity: d objective / d limit (objective units per limit unit)"}
     if any(r["sensitivity"] is None for r in rows):
-        out["note"] += ("; null: unknown (the SQP found nothing faster than its start, which is kept and is not a "
-                        "stationary point)")
+        out["note"] += ("; null: unknown (the SQP did not improve on its start, which is kept and is not known to be "
+                        "a stationary point)")
     if not time_optimal:
-        out["d_jerk_d_T"] = float(-sol.cap_multiplier * sol.objective_scale)
+        value = float(-sol.cap_multiplier * sol.objective_scale)
+        out["d_jerk_d_T"] = value if np.isfinite(value) else None
         if check:
             vals = []
             for f in (1.0 + FD_STEP, 1.0 - FD_STEP):
@@ -372,7 +374,11 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     shortest = _shortest(problem)
     if d is not None and d < shortest.F[0]:
         raise _too_short(problem, shortest, d)
-    if method == "direct":
+    if method == "direct" and d is not None and _finer(problem):
+        # a larger family's plan of a given duration starts from the coarser family's (the
+        # continuation of _of_duration); a front would only add the dearest solves
+        sols, front_F, chosen = [shortest], shortest.F[None], shortest
+    elif method == "direct":
         _, front = _direct_front(problem, n_front, shortest)
         sols = [shortest] + front
         front_F = np.array([s.F for s in sols])
@@ -425,34 +431,104 @@ def _too_short(problem: DockingProblem, shortest: solve.Solution, duration: floa
                      f"(every interval at least {problem.interval_bounds[0]:g} s)")
 
 
+def _finer(problem: DockingProblem) -> bool:
+    """Whether ``problem``'s family starts its solves from a coarser family's (more free
+    control points than the paper's five, not reduced)."""
+    return problem.n_control > config.N_FREE and not problem.reduced
+
+
 def _of_duration(problem: DockingProblem, T: float, shortest: solve.Solution, found, T_found):
     """The least-jerk certified solution that takes exactly ``T`` seconds (``T`` at least
-    the shortest time): :func:`dockjax.solve.least_jerk` at the cap ``T``, from the found
-    trajectory with the longest time up to ``T`` slowed to it (exact time scaling keeps it
-    feasible) and from the straight line; the answer is then slowed by the exact time
-    scaling ``T / T(x)`` (at least 1: a hair, as the solve stops a hair inside its cap),
-    which lowers every rate and the jerk. Where the certificate slowed the solve beyond
-    ``T``, the cap is lowered by as much and solved again. Near the shortest time (within
+    the shortest time): :func:`_least_jerk_of_duration` from the found trajectory with the
+    longest time up to ``T`` slowed to it (exact time scaling keeps it feasible) or, in a
+    family larger than the paper's, from the coarser family's plan of that duration
+    (:func:`_coarse_duration`), where there is one. Near the shortest time (within
     :data:`dockjax.solve.SHORTEST_SLACK`) the shortest-time trajectory is slowed instead.
     → ``(solution, time_optimal)``."""
     if T <= shortest.F[0] * (1 + solve.SHORTEST_SLACK):
-        sol, time_optimal = shortest, True
-    else:
-        T_found = np.asarray(T_found, np.float64)
-        i = int(np.argmax(np.where(T_found <= T, T_found, -np.inf)))
-        starts, cap, sol, time_optimal = [solve.time_scale(problem, found[i], T / T_found[i])], T, None, False
-        for _ in range(3):
-            sol = solve.least_jerk(problem, cap, starts)
-            if sol is None or sol.F[0] <= T:
-                break
-            cap *= T / sol.F[0]
-            starts = [sol.x]
-        if sol is None or sol.F[0] > T:
-            raise PlanError(f"the least-jerk solve at T = {T:.6g} s found no certified trajectory of that duration")
+        return _exactly(problem, shortest, T), True
+    T_found = np.asarray(T_found, np.float64)
+    i = int(np.argmax(np.where(T_found <= T, T_found, -np.inf)))
+    starts = _coarse_duration(problem, T) or [solve.time_scale(problem, found[i], T / T_found[i])]
+    sol = _least_jerk_of_duration(problem, T, starts)
+    if sol is None:
+        raise PlanError(f"the least-jerk solve at T = {T:.6g} s found no certified trajectory of that duration")
+    return sol, False
+
+
+def _coarse_duration(problem: DockingProblem, T: float) -> list[np.ndarray]:
+    """The start a larger family's plan of duration ``T`` takes from a coarser family
+    (:func:`_coarser`, halving down to the paper's five: a continuation over families):
+    that family's least-jerk trajectory of duration ``T``, written exactly in ``problem``'s
+    family (:func:`dockjax.solve.refine_family`). Empty for the paper's family and smaller,
+    and where the coarser family has no trajectory of that duration."""
+    if not _finer(problem):
+        return []
+    coarse = problem.with_n_control(max(config.N_FREE, problem.n_control // 2))
+    T = T * (1.0 - COARSE_MARGIN)
+    try:
+        if _finer(coarse):
+            starts = _coarse_duration(coarse, T)
+        else:
+            short = _shortest(coarse, smooth=False)
+            starts = [solve.time_scale(coarse, short.x, T / short.F[0])] if short.F[0] <= T else []
+    except PlanError:
+        return []
+    sol = _least_jerk_of_duration(coarse, T, starts) if starts else None
+    x = None if sol is None else solve.refine_family(problem, coarse, sol.x)
+    return [] if x is None else [x]
+
+
+COARSE_MARGIN = 1e-9
+"""A coarser family's plan in :func:`_coarse_duration` takes this much (relative) less than
+the duration asked, so that the rounding of its writing in the finer family cannot carry it
+over (the finer plan slows it to the duration exactly)."""
+
+
+def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.Solution | None:
+    """The lowest-jerk certified solution of exactly ``T`` seconds from ``starts`` (each
+    (n_var,), taking at most ``T``): :func:`dockjax.solve.least_jerk` at the cap ``T``; where
+    the certificate slowed its answer beyond ``T``, the cap is lowered by as much and solved
+    again, while that answer is smoother than every certified start (a shorter cap only
+    adds jerk). Every answer, and every start the kernel certifies, is slowed to exactly
+    ``T`` by exact time scaling (at least 1: a hair, as a solve stops a hair inside its
+    cap), which lowers every rate and the jerk; the lowest jerk wins, so the answer is never
+    jerkier than a certified start. None when nothing certified takes at most ``T``."""
+    certified = (solve.certify_scaling(problem, x) for x in starts)
+    found = [_start_solution(problem, *c[:3]) for c in certified if c is not None and c[1][0] <= T]
+    start_jerk = min((_exactly(problem, s, T).F[1] for s in found), default=np.inf)
+    cap, tried = T, list(starts)
+    for _ in range(3):
+        sol = solve.least_jerk(problem, cap, tried)
+        if sol is None:
+            break
+        found.append(sol)
+        if sol.F[0] <= T or sol.F[1] >= start_jerk:
+            break
+        cap *= T / sol.F[0]
+        tried = [sol.x]
+    exact = [_exactly(problem, s, T) for s in found if s.F[0] <= T]
+    exact = [s for s in exact if np.all(s.G <= 0)]
+    return min(exact, key=lambda s: s.F[1]) if exact else None
+
+
+def _start_solution(problem: DockingProblem, x, F, G) -> solve.Solution:
+    """A certified start of ``problem`` as a :class:`dockjax.solve.Solution` of no solve; its
+    multipliers, and so its sensitivities, unknown (NaN)."""
+    shape = (problem.n_intervals, config.N_JOINTS, solve.critical_values(problem))
+    return solve.Solution(x=np.asarray(x, np.float64), F=np.asarray(F), G=np.asarray(G),
+                          x_solver=np.asarray(x, np.float64), multipliers=np.full(shape, np.nan),
+                          cap_multiplier=np.nan, objective_scale=1.0, scaled=1.0, iterations=0, success=False,
+                          message="a certified start no solve improved on")
+
+
+def _exactly(problem: DockingProblem, sol: solve.Solution, T: float) -> solve.Solution:
+    """``sol`` slowed by exact time scaling to take exactly ``T`` (≥ its time), its F and G
+    evaluated again."""
     x = solve.time_scale(problem, sol.x, T / float(np.sum(sol.x[: problem.n_intervals])))
     x[: problem.n_intervals] = np.minimum(x[: problem.n_intervals], problem.upper[: problem.n_intervals])
     F, G = problem.evaluate(x[None], screen=False)
-    return dataclasses.replace(sol, x=x, F=F[0], G=G[0]), time_optimal
+    return dataclasses.replace(sol, x=x, F=F[0], G=G[0])
 
 
 class Planner:
@@ -551,11 +627,13 @@ def explain_text(why: dict) -> str:
                      f"{value}{check}")
     low = why.get("intervals_at_bounds", {}).get("lower", 0)
     if low:
-        lines.append(f"  {low} of the 6 knot intervals at their lower bound (--interval-bounds)")
+        of = why["intervals_at_bounds"].get("of", config.N_INTERVALS)
+        lines.append(f"  {low} of the {of} knot intervals at their lower bound (--interval-bounds)")
     if "d_jerk_d_T" in why:
         fd = why.get("d_jerk_d_T_finite_difference")
         check = f"   re-planned ±{100 * FD_STEP:g} %: {fd:+.5g}" if fd is not None else ""
-        lines.append(f"  value of time: d jerk / d T = {why['d_jerk_d_T']:+.5g} per s{check}")
+        value = "unknown" if why["d_jerk_d_T"] is None else f"{why['d_jerk_d_T']:+.5g} per s"
+        lines.append(f"  value of time: d jerk / d T = {value}{check}")
     return "\n".join(lines)
 
 

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
+from dockjax import plan as P
 from dockjax import solve
 from dockjax.plan import Planner, plan
 from dockjax.problem import DockingProblem, make_problem
@@ -163,6 +164,27 @@ def test_a_time_solve_that_cannot_beat_its_start_returns_the_start_with_its_sens
     slow = solve.min_time(WIDE, R.straight_line_x(WIDE.start, WIDE.goal, (3.0,) * 6))
     assert slow is not None and slow.F[0] > s["T_s"] and np.all(slow.G <= 0)
     assert np.isnan(solve.sensitivities(WIDE, slow)).all()
+
+
+def test_a_plan_of_a_given_duration_is_never_jerkier_than_its_certified_start(wide_time_plan, monkeypatch):
+    """A plan of a given duration keeps a certified start when no solve does better (here:
+    every least-jerk solve fails): the start comes back slowed to exactly the duration by
+    exact time scaling, certified by the dense check and smoother than the start; its
+    value of time is unknown, not made up. With no start and no solve there is no answer."""
+    s = _summary(wide_time_plan)
+    x0, T = np.array(s["x"]), 1.1 * s["T_s"]
+    monkeypatch.setattr(solve, "least_jerk", lambda *args, **kwargs: None)
+    sol = P._least_jerk_of_duration(WIDE, T, [x0])
+    T_ref, J_ref = R.reference_objectives(sol.x, WIDE.start, WIDE.goal, WIDE.arm_distance)
+    assert T_ref == pytest.approx(T, rel=1e-12) and J_ref == pytest.approx(sol.F[1], rel=1e-8)
+    np.testing.assert_allclose(sol.x[:6], x0[:6] * 1.1, rtol=1e-12)
+    np.testing.assert_array_equal(sol.x[6:], x0[6:])
+    _, ok = R.dense_check(WIDE, sol.x[None], n_samples=20001)
+    assert ok.all()
+    assert J_ref < R.reference_objectives(x0, WIDE.start, WIDE.goal, WIDE.arm_distance)[1]
+    why = P.explain(WIDE, sol, P._certify(WIDE, sol.x, 100.0), time_optimal=False, check=False)
+    assert why["d_jerk_d_T"] is None and "d jerk / d T = unknown" in P.explain_text(why)
+    assert P._least_jerk_of_duration(WIDE, T, []) is None
 
 
 def test_a_limit_that_does_not_bind_has_no_value(wide_time_plan):
