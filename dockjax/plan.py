@@ -149,14 +149,20 @@ FD_STEP = 0.01
 """Relative change of a limit in the finite-difference check of its sensitivity."""
 
 
+def _halved(problem: DockingProblem) -> int:
+    """Half as many free control points as ``problem``'s family, at least the paper's five:
+    a step of the continuation over families."""
+    return max(config.N_FREE, problem.n_control // 2)
+
+
 def _coarser(problem: DockingProblem) -> int:
     """The family (free control points) the shortest-time solve of a larger family starts
-    from: with jerk limits half as many, at least the paper's five (a continuation over
-    families); without, the paper's five at once. Measured on the default move with knot
+    from: with jerk limits :func:`_halved` (a continuation over families); without, the
+    paper's five at once. Measured on the default move with knot
     intervals in [0.05, 30] s at 32 points (docs/planning.md): with jerk limits one jump from
     5 stalls at 15.78 s where doubling reaches 15.205 s; without, both reach 12.06 s, the
     jump in 61 s and the continuation in 9.6 min."""
-    return max(config.N_FREE, problem.n_control // 2) if problem.jerk is not None else config.N_FREE
+    return _halved(problem) if problem.jerk is not None else config.N_FREE
 
 
 def _shortest(problem: DockingProblem, x0=None, *, smooth: bool = True) -> solve.Solution:
@@ -458,13 +464,14 @@ def _of_duration(problem: DockingProblem, T: float, shortest: solve.Solution, fo
 
 def _coarse_duration(problem: DockingProblem, T: float) -> list[np.ndarray]:
     """The start a larger family's plan of duration ``T`` takes from a coarser family
-    (:func:`_coarser`, halving down to the paper's five: a continuation over families):
+    (:func:`_halved`, down to the paper's five: a continuation over families, with or
+    without jerk limits):
     that family's least-jerk trajectory of duration ``T``, written exactly in ``problem``'s
     family (:func:`dockjax.solve.refine_family`). Empty for the paper's family and smaller,
     and where the coarser family has no trajectory of that duration."""
     if not _finer(problem):
         return []
-    coarse = problem.with_n_control(max(config.N_FREE, problem.n_control // 2))
+    coarse = problem.with_n_control(_halved(problem))
     T = T * (1.0 - COARSE_MARGIN)
     try:
         if _finer(coarse):
@@ -495,7 +502,7 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
     cap), which lowers every rate and the jerk; the lowest jerk wins, so the answer is never
     jerkier than a certified start. None when nothing certified takes at most ``T``."""
     certified = (solve.certify_scaling(problem, x) for x in starts)
-    found = [_start_solution(problem, *c[:3]) for c in certified if c is not None and c[1][0] <= T]
+    found = [solve.kept_start(problem, c) for c in certified if c is not None and c[1][0] <= T]
     start_jerk = min((_exactly(problem, s, T).F[1] for s in found), default=np.inf)
     cap, tried = T, list(starts)
     for _ in range(3):
@@ -510,16 +517,6 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
     exact = [_exactly(problem, s, T) for s in found if s.F[0] <= T]
     exact = [s for s in exact if np.all(s.G <= 0)]
     return min(exact, key=lambda s: s.F[1]) if exact else None
-
-
-def _start_solution(problem: DockingProblem, x, F, G) -> solve.Solution:
-    """A certified start of ``problem`` as a :class:`dockjax.solve.Solution` of no solve; its
-    multipliers, and so its sensitivities, unknown (NaN)."""
-    shape = (problem.n_intervals, config.N_JOINTS, solve.critical_values(problem))
-    return solve.Solution(x=np.asarray(x, np.float64), F=np.asarray(F), G=np.asarray(G),
-                          x_solver=np.asarray(x, np.float64), multipliers=np.full(shape, np.nan),
-                          cap_multiplier=np.nan, objective_scale=1.0, scaled=1.0, iterations=0, success=False,
-                          message="a certified start no solve improved on")
 
 
 def _exactly(problem: DockingProblem, sol: solve.Solution, T: float) -> solve.Solution:

@@ -48,8 +48,8 @@ from .right_arm import linearisation_remainders
 from .robot import ATTITUDE_JOINTS, by_kind
 
 __all__ = ["Solution", "PlanError", "candidate_limits", "critical_times", "straight_line", "least_jerk",
-           "least_jerk_front", "map_to", "refine_family", "min_time", "min_jerk", "shortest", "certify_scaling",
-           "infeasibility",
+           "least_jerk_front", "kept_start", "map_to", "refine_family", "min_time", "min_jerk", "shortest",
+           "certify_scaling", "infeasibility",
            "scaling_need", "scaling_needs", "sensitivities", "time_scale", "critical_values"]
 
 
@@ -453,13 +453,25 @@ def min_time(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     sol = _solve(problem, x0, "time", None, scale, tol, max_iter, restarts)
     if start is not None and (sol is None or sol.F[0] > start[1][0]):
         # the SQP ended slower than its own (certified) start: the start is the answer
-        xs, F, G, s = start
-        sol = Solution(x=xs, F=np.asarray(F), G=np.asarray(G), x_solver=np.asarray(xs),
-                       multipliers=_multipliers_at(problem, xs, scale), cap_multiplier=0.0,
-                       objective_scale=scale, scaled=float(s), iterations=0 if sol is None else sol.iterations,
-                       success=False, message="no certified trajectory faster than the start found; "
-                       "multipliers estimated at the start")
+        sol = kept_start(problem, start, multipliers=_multipliers_at(problem, start[0], scale), cap_multiplier=0.0,
+                         objective_scale=scale, iterations=0 if sol is None else sol.iterations,
+                         message="no certified trajectory faster than the start found; multipliers estimated at "
+                         "the start")
     return sol
+
+
+def kept_start(problem: DockingProblem, certified, *, multipliers=None, cap_multiplier: float = math.nan,
+               objective_scale: float = 1.0, iterations: int = 0,
+               message: str = "a certified start no solve improved on") -> Solution:
+    """A certified start ``(x, F, G, s)`` (:func:`certify_scaling`) kept as the answer of a
+    programme, as a :class:`Solution` (``success`` False); multipliers (n_intervals, 8,
+    :func:`critical_values`) NaN, so its sensitivities unknown, unless given."""
+    x, F, G, s = certified
+    if multipliers is None:
+        multipliers = np.full((problem.n_intervals, config.N_JOINTS, critical_values(problem)), np.nan)
+    return Solution(x=np.asarray(x, np.float64), F=np.asarray(F), G=np.asarray(G), x_solver=np.asarray(x, np.float64),
+                    multipliers=multipliers, cap_multiplier=cap_multiplier, objective_scale=objective_scale,
+                    scaled=float(s), iterations=iterations, success=False, message=message)
 
 
 def min_jerk(problem: DockingProblem, x0, cap: float, *, tol: float = 1e-12, max_iter: int = 200,
