@@ -502,19 +502,20 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
     cap), which lowers every rate and the jerk; the lowest jerk wins, so the answer is never
     jerkier than a certified start. None when nothing certified takes at most ``T``."""
     certified = (solve.certify_scaling(problem, x) for x in starts)
-    found = [solve.kept_start(problem, c) for c in certified if c is not None and c[1][0] <= T]
-    start_jerk = min((_exactly(problem, s, T).F[1] for s in found), default=np.inf)
+    exact = [_exactly(problem, solve.kept_start(problem, c), T) for c in certified if c is not None and c[1][0] <= T]
+    start_jerk = min((s.F[1] for s in exact), default=np.inf)
     cap, tried = T, list(starts)
     for _ in range(3):
         sol = solve.least_jerk(problem, cap, tried)
         if sol is None:
             break
-        found.append(sol)
-        if sol.F[0] <= T or sol.F[1] >= start_jerk:
+        if sol.F[0] <= T:
+            exact.append(_exactly(problem, sol, T))
+            break
+        if sol.F[1] >= start_jerk:
             break
         cap *= T / sol.F[0]
         tried = [sol.x]
-    exact = [_exactly(problem, s, T) for s in found if s.F[0] <= T]
     exact = [s for s in exact if np.all(s.G <= 0)]
     return min(exact, key=lambda s: s.F[1]) if exact else None
 

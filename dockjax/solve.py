@@ -418,7 +418,7 @@ def _multipliers_at(problem, x, scale):
     the solver's point: the non-negative least-squares fit of the objective's gradient by
     the active limit constraints' and box bounds' gradients (SciPy's ``lsq_linear``, BVLS),
     ``∇f + Σ λ_i ∇g_i − Σ ν_j e_j + Σ ν_k e_k ≈ 0``. → (n_intervals, 8, critical_values);
-    NaN when the fit leaves more than :data:`STATIONARY` of ``|∇f|`` (x is not a KKT point:
+    None when the fit leaves more than :data:`STATIONARY` of ``|∇f|`` (x is not a KKT point:
     the sensitivities are unknown)."""
     lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
     u = (np.asarray(x, np.float64) - lo) / (hi - lo)
@@ -429,8 +429,7 @@ def _multipliers_at(problem, x, scale):
     A = np.concatenate([gj[active], -eye[u <= ACTIVE], eye[u >= 1.0 - ACTIVE]]).T  # bounds within a certified hair
     lam = lsq_linear(A, -fg, bounds=(0.0, np.inf), method="bvls").x
     if np.linalg.norm(A @ lam + fg) > STATIONARY * np.linalg.norm(fg):
-        return np.full((problem.n_intervals, config.N_JOINTS, gv.size // (problem.n_intervals * config.N_JOINTS)),
-                       np.nan)
+        return None
     mult = np.zeros(gv.size)
     mult[active] = lam[: int(active.sum())]
     return mult.reshape(problem.n_intervals, config.N_JOINTS, -1)
@@ -465,7 +464,7 @@ def kept_start(problem: DockingProblem, certified, *, multipliers=None, cap_mult
                message: str = "a certified start no solve improved on") -> Solution:
     """A certified start ``(x, F, G, s)`` (:func:`certify_scaling`) kept as the answer of a
     programme, as a :class:`Solution` (``success`` False); multipliers (n_intervals, 8,
-    :func:`critical_values`) NaN, so its sensitivities unknown, unless given."""
+    :func:`critical_values`) NaN, so its sensitivities unknown, unless given (not None)."""
     x, F, G, s = certified
     if multipliers is None:
         multipliers = np.full((problem.n_intervals, config.N_JOINTS, critical_values(problem)), np.nan)
