@@ -356,7 +356,6 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
     loose = jax.vmap(lambda a: _taylor_levels(a, jnp.full(shape, TAYLOR_LOOSE, c.dtype), TAYLOR_LEVELS))(anchors)
     if active is not None:
         loose = jnp.where(active[:, None], loose, -1)
-    U1, lo = _taylor_pass(problem, c, h, loose)
 
     def second(anchors, U1, lo, loose):
         top = U1.max(axis=0)
@@ -369,7 +368,18 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
         tight = jax.vmap(lambda a, t: _taylor_levels(a[None], t, TAYLOR_TIGHT_LEVELS)[0])(anchors, tol)
         return jnp.where(jnp.any(open_, axis=(1, 2)) & (tight > loose), tight, -1)
 
-    levels = jax.vmap(second)(anchors, U1, lo, loose)
-    U2, _ = _taylor_pass(problem, c, h, levels)
+    def trip(i, carry):
+        # trip 0 is the first pass (loose levels), trip 1 the second (levels from the
+        # first's bounds): one loop of two trips compiles one copy of the pass, not two
+        U1, lo, _, _ = carry
+        levels = jnp.where(i == 0, loose, jax.vmap(second)(anchors, U1, lo, loose))
+        U, low = _taylor_pass(problem, c, h, levels)
+        first = i == 0
+        return jnp.where(first, U, U1), jnp.where(first, low, lo), U, levels
+
+    n, s = h.shape
+    zeros = jnp.zeros((n, s) + shape, c.dtype)
+    init = (zeros, jnp.zeros((n,) + shape, c.dtype), zeros, loose)
+    U1, _, U2, levels = jax.lax.fori_loop(0, 2, trip, init)
     U = jnp.where((levels >= 0)[..., None, None], jnp.minimum(U1, U2), U1)
     return extrema.reduce_max(U, 1)
