@@ -1,20 +1,27 @@
-"""Compile and run time of dockjax's main programs under XLA:CPU's two code generators.
+"""Compile and run time of dockjax's main programs under two sets of XLA:CPU flags.
 
-    python benchmarks/bench_compile.py [--pairs 5] [--programs evaluate optimize taylor] [--rows 1024]
+    python benchmarks/bench_compile.py [--pairs 5] [--programs evaluate optimize nsga2 taylor] [--rows 1024]
+                                       [--a FLAGS] [--b FLAGS]
     python benchmarks/bench_compile.py --pairs 1 --programs evaluate --rows 16  # quick
 
-XLA:CPU emits its fused loops either with its default (MLIR) fusion emitters or with the
-classic ones (``--xla_cpu_use_fusion_emitters=false``). Each measurement is a fresh Python
-process (the flag is read when JAX starts; no persistent compilation cache), the two
-generators alternating pair by pair so that the machine's load falls on both alike. Per
-program: seconds of XLA compilation (JAX's ``backend_compile`` events) and the median
-run time of ``--repeats`` calls after the first, then the ratios classic / default (medians
-over the pairs), and the largest relative difference of the results between generators.
+Side A compiles with ``--a`` added to ``XLA_FLAGS`` (default none: JAX's defaults), side B
+with ``--b`` (default ``--xla_cpu_use_fusion_emitters=false``: XLA:CPU's classic fusion
+emitters instead of its default MLIR ones). With
+``--a=--xla_cpu_use_fusion_emitters=false --b="--xla_cpu_use_fusion_emitters=false
+--xla_backend_optimization_level=2"`` it measures LLVM optimisation level 2 against the
+default (3), both with the classic emitters: the test suite's settings (``tests/conftest.py``).
+Each measurement is a fresh Python process (flags are read when JAX starts; no persistent
+compilation cache), the two sides alternating pair by pair so that the machine's load falls
+on both alike. Per program: seconds of XLA compilation (JAX's ``backend_compile`` events)
+and the median run time of ``--repeats`` calls after the first, then the ratios B / A
+(medians over the pairs), and the largest relative difference of the results between the
+sides.
 
 Programs: ``evaluate`` (:meth:`dockjax.DockingProblem.evaluate` of the paper's problem,
 screened, ``--rows`` random candidates), ``optimize`` (IMOCS on the paper's problem, 2 seeds,
-population 16, 10 iterations, the scan driver), ``taylor`` (``evaluate`` with the right arm's
-Taylor models, 16 candidates).
+population 16, 10 iterations, the scan driver), ``nsga2`` (NSGA-II on ZDT1, 30 variables, 5
+seeds, population 100, 100 generations: one batched program), ``taylor`` (``evaluate`` with
+the right arm's Taylor models, 16 candidates).
 """
 
 from __future__ import annotations
@@ -27,8 +34,10 @@ import sys
 
 import numpy as np
 
-PROGRAMS = ("evaluate", "optimize", "taylor")
+PROGRAMS = ("evaluate", "optimize", "nsga2", "taylor")
 CLASSIC = "--xla_cpu_use_fusion_emitters=false"
+MANAGED = (CLASSIC, "--xla_backend_optimization_level")
+"""Flags of the sides: removed from the inherited ``XLA_FLAGS`` before a side's own are added."""
 
 CHILD = r"""
 import json, sys, time
@@ -39,7 +48,10 @@ def count(event, seconds, **_):
         compiled[0] += seconds
 jax.monitoring.register_event_duration_secs_listener(count)
 import numpy as np
+import jax
 from dockjax import DockingProblem
+from dockjax.algorithms import base, nsga2
+from dockjax.algorithms.zdt import ZDT1
 from dockjax.optimize import optimize
 
 programs, rows, repeats = sys.argv[1].split(","), int(sys.argv[2]), int(sys.argv[3])
@@ -50,6 +62,11 @@ calls = {
     "optimize": lambda: optimize("imocs", problem, seeds=[0, 1], pop_size=16, n_iter=10).F,
     "taylor": lambda: np.concatenate(problem.with_right_arm("taylor").evaluate(X[:16]), 1),
 }
+nsga2_run = jax.jit(jax.vmap(lambda k: base.run(nsga2.ALGORITHM, k, ZDT1(), nsga2.Params(pop_size=100), 100)[0]))
+def _nsga2():
+    with jax.enable_x64(True):
+        return np.asarray(nsga2_run(jax.vmap(jax.random.key)(np.arange(5))).pop.F)
+calls["nsga2"] = _nsga2
 out = {}
 for name in programs:
     before = compiled[0]
@@ -65,13 +82,14 @@ print(json.dumps(out))
 """
 
 
-def _flags(classic: bool) -> str:
-    flags = os.environ.get("XLA_FLAGS", "").replace(CLASSIC, "")
-    return (flags + " " + CLASSIC).strip() if classic else flags.strip()
+def _flags(extra: str) -> str:
+    """The inherited ``XLA_FLAGS`` without the flags of :data:`MANAGED`, plus ``extra``."""
+    kept = [f for f in os.environ.get("XLA_FLAGS", "").split() if not f.startswith(MANAGED)]
+    return " ".join(kept + extra.split())
 
 
-def _measure(classic: bool, programs: list[str], rows: int, repeats: int) -> dict:
-    env = {**os.environ, "XLA_FLAGS": _flags(classic)}
+def _measure(extra: str, programs: list[str], rows: int, repeats: int) -> dict:
+    env = {**os.environ, "XLA_FLAGS": _flags(extra)}
     r = subprocess.run([sys.executable, "-c", CHILD, ",".join(programs), str(rows), str(repeats)], env=env,
                        capture_output=True, text=True, timeout=1800)
     if r.returncode != 0:
@@ -86,15 +104,21 @@ def main(argv: list[str] | None = None) -> None:
                     help=f"programs to compile (default all: {', '.join(PROGRAMS)})")
     ap.add_argument("--rows", type=int, default=1024, help="candidates of the evaluate program")
     ap.add_argument("--repeats", type=int, default=5, help="timed calls after the first")
+    ap.add_argument("--a", default="", metavar="FLAGS", help="XLA flags of side A (default: none, JAX's defaults)")
+    ap.add_argument("--b", default=CLASSIC, metavar="FLAGS", help=f"XLA flags of side B (default: {CLASSIC})")
     args = ap.parse_args(argv)
     if args.pairs < 1 or args.rows < 1 or args.repeats < 1:
         ap.error("--pairs, --rows and --repeats must be >= 1")
+    for side in (args.a, args.b):
+        if any(not f.startswith("--xla_") for f in side.split()):
+            ap.error(f"--a and --b take XLA flags (each starting with --xla_), got {side!r}")
     runs = {False: [], True: []}
     for i in range(args.pairs):
-        for classic in ((False, True) if i % 2 == 0 else (True, False)):
-            runs[classic].append(_measure(classic, args.programs, args.rows, args.repeats))
-    print(f"medians of {args.pairs} fresh process(es) per code generator; run time: median of {args.repeats} calls")
-    print(f"{'program':>9} {'compile default':>15} {'classic':>8} {'ratio':>6} {'run default':>12} {'classic':>8} "
+        for b in ((False, True) if i % 2 == 0 else (True, False)):
+            runs[b].append(_measure(args.b if b else args.a, args.programs, args.rows, args.repeats))
+    print(f"A: {args.a or '(no flags)'}\nB: {args.b or '(no flags)'}")
+    print(f"medians of {args.pairs} fresh process(es) per side; run time: median of {args.repeats} calls")
+    print(f"{'program':>9} {'compile A':>15} {'B':>8} {'ratio':>6} {'run A':>12} {'B':>8} "
           f"{'ratio':>6} {'result rel. diff':>16}")
     for name in args.programs:
         med = {c: {k: float(np.median([r[name][k] for r in runs[c]])) for k in ("compile_s", "run_s")}

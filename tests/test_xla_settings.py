@@ -14,6 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from tests.conftest import TEST_FLAGS
+
 SCRIPT = r"""
 import os
 import sys
@@ -84,9 +86,9 @@ def other_process(tmp_path_factory, worker_id):
             fcntl.flock(lock, fcntl.LOCK_EX)
         if fcntl is None or not path.exists():
             part = root / f"xla_settings.{worker_id}.npz"
-            # JAX's default code generation (tests/conftest.py's classic-emitter flag removed), at O0
-            flags = os.environ.get("XLA_FLAGS", "").replace("--xla_cpu_use_fusion_emitters=false", "")
-            env = {**os.environ, "XLA_FLAGS": (flags + " --xla_backend_optimization_level=0").strip()}
+            # JAX's default code generation (tests/conftest.py's flags removed), at O0
+            flags = [f for f in os.environ.get("XLA_FLAGS", "").split() if f not in TEST_FLAGS]
+            env = {**os.environ, "XLA_FLAGS": " ".join(flags + ["--xla_backend_optimization_level=0"])}
             r = subprocess.run([sys.executable, "-c", SCRIPT, str(part)], env=env, capture_output=True,
                                text=True, timeout=600)
             assert r.returncode == 0, r.stderr[-3000:]
