@@ -322,7 +322,7 @@ def check_duration(problem: DockingProblem, duration) -> float | None:
     :func:`plan` (it takes a solve to know)."""
     if duration is None:
         return None
-    d = checks.vector("duration", [duration], (1,), positive=True)[0]
+    d = checks.number("duration", duration, 0.0, open_lo=True)
     longest = problem.n_intervals * problem.interval_bounds[1]
     if d > longest:
         raise ValueError(f"duration {d:g} s is longer than the longest T = {longest:g} s the interval bounds "

@@ -159,7 +159,8 @@ def test_a_plan_error_names_its_limit_as_data():
         (["--seed", str(2**70)], "--seed"),
         (["--pop", "3", "--method", "imocs"], "--pop"),
         (["--duration", "61"], "--duration"),  # longer than 6 x 10 s, the paper's interval bounds
-        (["--duration", "-1"], "--duration"),
+        (["--duration", "-1"], "--duration must be finite and > 0, got -1.0"),
+        (["--duration", "nan"], "--duration must be finite and > 0, got nan"),
     ],
 )
 def test_plan_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args, needle):
