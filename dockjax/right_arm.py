@@ -349,7 +349,8 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
     above the lower bound of a column to be made tight: with ``band``, the columns whose
     bounds reach within that fraction of the limit (the screen's
     :data:`dockjax.limits.SCREEN_BAND`), else (None) every column. A span's
-    value is the smaller of its two passes' bounds (both are upper bounds)."""
+    value is the smaller of its two passes' bounds (both are upper bounds). The passes are
+    the two trips of one ``fori_loop``, so the compiled program holds one copy of the pass."""
     lim = problem.limits[ATTITUDE_JOINTS]
     shape = (3, problem.n_kinds)
     anchors = jax.vmap(partial(_taylor_anchors, problem))(c, h, ref)  # (n, s, A, 3, kinds)
