@@ -106,7 +106,7 @@ def test_chunks_that_are_not_this_places_result_are_recomputed(tiny_sweep, tmp_p
     recomputed (or left out), never read as a result; runs.csv is the true one."""
     full, _ = tiny_sweep
     other = tmp_path / "other"
-    assert S.run(other, S.TINY, "--param", "p_a=0.3")[0] == 0  # another study, the same file names
+    assert S.run(other, S.TINY, "--rho", "0.35", "0.5")[0] == 0  # another study, the same file names
     out = tmp_path / "s"
     shutil.copytree(full, out)
     chunks = out / "chunks"

@@ -69,14 +69,14 @@ def dense_bracket(p: DockingProblem, x, n_samples: int = N_DENSE):
     spacing = np.max(np.diff(t))
     upper = np.max(np.stack([np.abs(qd[0] - home), np.abs(qd[1]), np.abs(qd[2])], -1), axis=0)
     upper = np.maximum(upper + 1.5 * slope * spacing / 2, lower)
-    lim = p.limits
+    lim = np.asarray(p.limits)[:, :3]  # travel, velocity, acceleration (jerk limits aside)
     return (lower / lim - 1.0).ravel(), (upper / lim - 1.0).ravel()
 
 
 @functools.lru_cache(maxsize=None)
-def _problems(start, goal, d2, bounds, travel, n_control=5):
+def _problems(start, goal, d2, bounds, travel, n_control=5, jerk=None):
     kw = dict(start=start, goal=goal, arm_distance=d2, interval_bounds=bounds, travel=travel,
-              jerk_nodes=JERK_NODES, n_control=n_control)
+              jerk_nodes=JERK_NODES, n_control=n_control, jerk=jerk)
     auto = DockingProblem(**kw)
     return auto, {m: DockingProblem(**kw, right_arm=m) for m in MODES}
 
@@ -110,6 +110,8 @@ def _check(p_auto, problems, X, where):
     for mode, p in {"auto": p_auto, **problems}.items():
         for screen in (True, False):
             G = _evaluate(p, X, screen)
+            if G.shape[1] == 32:  # jerk columns too: the travel, velocity and acceleration ones
+                G = G.reshape(len(G), 8, 4)[:, :, :3].reshape(len(G), 24)
             # the reference's own rounding: BELOW, and a few ulps of the value where a scaled
             # row lies millions of limits over (its q/L − 1 is rounded at that magnitude)
             below = (G - lower) / (1.0 + 8 * np.finfo(float).eps / BELOW * np.abs(lower))
