@@ -16,6 +16,9 @@ column is ever below the true maximum:
   (comfortably satisfied or clearly violated) may overstate by at most
   :data:`SCREEN_SLACK` of the limit (conventions §6 allows 0.01);
 * :data:`G_SAFETY` is added against rounding (:func:`columns`).
+
+Every function is traceable and takes the robot's numbers (:class:`dockjax.robot.Robot`:
+D_2, home, the limit table), not the whole problem.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from .right_arm import linearisation_remainders, right_taylor_maxima
 from .robot import ATTITUDE_JOINTS
 
 if TYPE_CHECKING:
-    from .problem import DockingProblem
+    from .robot import Robot
 
 __all__ = [
     "G_SAFETY", "BOUND_TOLERANCE", "SCREEN_SLOTS", "SCREEN_BAND", "SCREEN_SLACK", "joint_series", "maxima",
@@ -54,7 +57,7 @@ SCREEN_SLACK = 0.009
 """The most a column outside the band may overstate (conventions §6 allows 0.01)."""
 
 
-def joint_series(problem: "DockingProblem", c, h, ref):
+def joint_series(robot: "Robot", c, h, ref):
     """Power series of the eight joints on each span, minus home; the right arm's axial,
     lift and lateral joints linearised in pitch and yaw about the span's middle.
     c: (6, 6, 6), h: (6,) → (6 spans, 8 joints, 6 powers)."""
@@ -71,15 +74,15 @@ def joint_series(problem: "DockingProblem", c, h, ref):
     uz = ca * cb * e0 - sa * cb * da - ca * sb * db
     uy = sa * e0 + ca * da
     ux = ca * sb * e0 - sa * sb * da + ca * cb * db
-    polys = jnp.stack(kinematics.arm_joints(x, y, z, g, ux, uy, uz, problem.arm_distance), axis=1)
-    return polys - problem.home[None, :, None] * e0
+    polys = jnp.stack(kinematics.arm_joints(x, y, z, g, ux, uy, uz, robot.arm_distance), axis=1)
+    return polys - robot.home[None, :, None] * e0
 
 
-def _with_jerk(problem: "DockingProblem", M, polys, h, rem):
-    """M (8, 3) with the problem's jerk column appended when it has jerk limits: per span the
+def _with_jerk(robot: "Robot", M, polys, h, rem):
+    """M (8, 3) with the robot's jerk column appended when it has jerk limits: per span the
     closed-form maximum of the series' quadratic jerk (:func:`dockjax.extrema.jerk_maxima`),
     plus the right arm's remainder ``rem`` (s, 3 joints) where given. → (8, kinds)."""
-    if problem.jerk is None:
+    if not robot.has_jerk:
         return M
     spans = extrema.jerk_maxima(polys, jnp.broadcast_to(h[:, None], polys.shape[:2]))  # (s, 8)
     if rem is not None:
@@ -87,35 +90,36 @@ def _with_jerk(problem: "DockingProblem", M, polys, h, rem):
     return jnp.concatenate([M, extrema.reduce_max(spans, 0)[:, None]], -1)
 
 
-def maxima(problem: "DockingProblem", c, h, ref, *, with_need: bool = False, screen: bool = False):
+def maxima(robot: "Robot", c, h, ref, *, taylor: bool = False, with_need: bool = False, screen: bool = False):
     """``max_t |q_j − home_j|``, ``max |q_j'|``, ``max |q_j''|`` (and ``max |q_j'''|`` with jerk
     limits) per joint. → (8, kinds).
 
+    ``taylor`` (static): the right arm's ``"taylor"`` treatment, else its ``"bound"`` one.
     With ``with_need``, also whether this candidate's bound treatment of the right arm may
     overstate by more than :data:`BOUND_TOLERANCE` (always False in the ``"taylor"``
     treatment). ``screen``: as in :func:`dockjax.right_arm.right_taylor_maxima` (the ``"taylor"`` treatment's
     choice of tight columns)."""
-    polys = materialize(joint_series(problem, c, h, ref))
+    polys = materialize(joint_series(robot, c, h, ref))
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     spans, _ = extrema.span_maxima(polys, hh)
     lin = extrema.reduce_max(spans, 0)  # (8, 3)
-    if problem.right_arm == "taylor":
+    if taylor:
         band = SCREEN_BAND if screen else None
-        right = right_taylor_maxima(problem, c[None], h[None], tuple(a[None] for a in ref), band)[0]
+        right = right_taylor_maxima(robot, c[None], h[None], tuple(a[None] for a in ref), band)[0]
         need = jnp.zeros((), bool)
-        lin = _with_jerk(problem, lin, polys, h, None)
+        lin = _with_jerk(robot, lin, polys, h, None)
     else:
-        rems = linearisation_remainders(problem, c, h, ref)  # (s, 3 joints, kinds)
+        rems = linearisation_remainders(robot, c, h, ref)  # (s, 3 joints, kinds)
         rem = extrema.reduce_max(rems, 0)  # (3 joints, kinds)
-        lin = _with_jerk(problem, lin, polys, h, None if problem.jerk is None else rems[..., 3])
+        lin = _with_jerk(robot, lin, polys, h, None if not robot.has_jerk else rems[..., 3])
         # the jerk column already holds the remainder (added per span by _with_jerk)
-        right = lin[ATTITUDE_JOINTS] + (rem if problem.jerk is None else jnp.pad(rem[:, :3], ((0, 0), (0, 1))))
-        need = jnp.any(2.0 * rem > BOUND_TOLERANCE * problem.limits[ATTITUDE_JOINTS])
+        right = lin[ATTITUDE_JOINTS] + (rem if not robot.has_jerk else jnp.pad(rem[:, :3], ((0, 0), (0, 1))))
+        need = jnp.any(2.0 * rem > BOUND_TOLERANCE * robot.limits[ATTITUDE_JOINTS])
     out = lin.at[ATTITUDE_JOINTS].set(right)
     return (out, need) if with_need else out
 
 
-def maxima_screened(problem: "DockingProblem", c, h, ref):
+def maxima_screened(robot: "Robot", c, h, ref):
     """The maxima of :func:`maxima` (bound treatment of the right arm) for a fraction of
     the cost. → ``(M (8, 3), need, over, spans)``.
 
@@ -133,14 +137,14 @@ def maxima_screened(problem: "DockingProblem", c, h, ref):
     its columns are then valid upper bounds, not necessarily within the tolerance, and it
     is re-scored by the full chain on all its spans, as :func:`dockjax.problem.score_batch` does (from the
     returned ``(span series (48, 6), span lengths (48,), right-arm remainders (8, 3))``)."""
-    polys = materialize(joint_series(problem, c, h, ref))  # (6, 8, 6)
+    polys = materialize(joint_series(robot, c, h, ref))  # (6, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     low, up = materialize(extrema.span_bounds(polys, hh))  # (6, 8, 3); read by several fusions
-    rems = linearisation_remainders(problem, c, h, ref)  # (s, 3 joints, kinds)
+    rems = linearisation_remainders(robot, c, h, ref)  # (s, 3 joints, kinds)
     rem_all = extrema.reduce_max(rems, 0)  # (3 joints, kinds)
     rem = rem_all[:, :3]
     extra = jnp.zeros((8, 3), c.dtype).at[ATTITUDE_JOINTS].set(rem)
-    lim = problem.limits[:, :3]
+    lim = robot.limits[:, :3]
     top = low.max(axis=0)
     est = top + extra
     far = (est < (1.0 - SCREEN_BAND) * lim) | (est > (1.0 + SCREEN_BAND) * lim)
@@ -169,16 +173,16 @@ def maxima_screened(problem: "DockingProblem", c, h, ref):
         hit = (joint == idx[r] % up.shape[1]) & filled[r]  # (8,)
         rate = jnp.maximum(rate, jnp.where(hit[:, None], jnp.minimum(up_items[idx[r], 1:], exact[r]), 0.0))
     M = jnp.concatenate([extrema.reduce_max(up[..., :1], 0), rate], axis=1) + extra
-    need = jnp.any(2.0 * rem_all > BOUND_TOLERANCE * problem.limits[ATTITUDE_JOINTS])
+    need = jnp.any(2.0 * rem_all > BOUND_TOLERANCE * robot.limits[ATTITUDE_JOINTS])
     over = jnp.any(rest) | jnp.any(fail[:, 0])
     # the jerk (a quadratic per span) is exact and cheap: no screening
-    M = _with_jerk(problem, M, polys, h, None if problem.jerk is None else rems[..., 3])
+    M = _with_jerk(robot, M, polys, h, None if not robot.has_jerk else rems[..., 3])
     return M, need, over, (polys.reshape(n_items, -1), hh.reshape(-1), extra)
 
 
-def columns(problem: "DockingProblem", M, limits=None):
+def columns(robot: "Robot", M, limits=None):
     """G columns (..., 8 · kinds) from the maxima (..., 8, kinds), joint-major (conventions §6,
-    with the safety margin); ``limits`` (8, kinds) replaces the problem's table (a subset of
+    with the safety margin); ``limits`` (8, kinds) replaces the robot's table (a subset of
     its kinds)."""
-    lim = problem.limits if limits is None else limits
+    lim = robot.limits if limits is None else limits
     return (M / lim - 1.0 + G_SAFETY).reshape(M.shape[:-2] + (-1,))

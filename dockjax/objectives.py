@@ -22,7 +22,7 @@ from .right_arm import right_terms
 from .robot import JOINTS
 
 if TYPE_CHECKING:
-    from .problem import DockingProblem
+    from .robot import Robot
 
 __all__ = ["JERK_NODES", "jerk_nodes_for", "jerk", "mean_square_jerk", "safe_sqrt"]
 
@@ -51,19 +51,20 @@ def safe_sqrt(v):
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, v, 1.0)), 0.0)
 
 
-def jerk(problem: "DockingProblem", c, h, ref, *, differentiable: bool = False):
+def jerk(robot: "Robot", c, h, ref, *, nodes: int, differentiable: bool = False):
     """Sum over the eight joints of the RMS jerk (Eq. 25); see :func:`mean_square_jerk`.
     ``differentiable``: through :func:`safe_sqrt`, so that gradients stay finite where a
     joint does not move (refinement, the SQP programmes); the value is the same."""
     sqrt = safe_sqrt if differentiable else jnp.sqrt
-    return jnp.sum(sqrt(mean_square_jerk(problem, c, h, ref)))
+    return jnp.sum(sqrt(mean_square_jerk(robot, c, h, ref, nodes)))
 
 
-def mean_square_jerk(problem: "DockingProblem", c, h, ref):
+def mean_square_jerk(robot: "Robot", c, h, ref, nodes: int):
     """``(1/T) ∫ (d³q_j/dt³)² dt`` of the eight joints (8,) (Eq. 25): in closed form per span
     for the joints linear in the pose, by Gauss–Legendre per span for the right arm's
-    nonlinear ones (``problem.jerk_nodes`` per span, :data:`JERK_NODES`)."""
-    xi, w = np.polynomial.legendre.leggauss(problem.jerk_nodes)
+    nonlinear ones (``nodes`` per span (static): a problem's ``jerk_nodes``, :data:`JERK_NODES`).
+    robot: :class:`dockjax.robot.Robot` (D_2); c, h, ref: as :func:`dockjax.right_arm.right_terms`."""
+    xi, w = np.polynomial.legendre.leggauss(nodes)
     tau = 0.5 * h[:, None] * (1.0 + jnp.asarray(xi, c.dtype))  # (6, n)
     weights = 0.5 * h[:, None] * jnp.asarray(w, c.dtype)
     # joints linear in the pose: the jerk on a span is a quadratic a + bτ + cτ², whose
@@ -74,7 +75,7 @@ def mean_square_jerk(problem: "DockingProblem", c, h, ref):
                                                       + hk * (0.5 * b * q + hk * (q * q / 5.0))))), axis=0)
     # the right arm's third Taylor coefficients as separate arrays (no stacking: the
     # reverse pass, used by refinement, then fuses)
-    right = iter([jnp.sum(weights * (6.0 * j[3]) ** 2) for j in right_terms(problem, c, tau, 3, ref)])
+    right = iter([jnp.sum(weights * (6.0 * j[3]) ** 2) for j in right_terms(robot, c, tau, 3, ref)])
     # a joint that does not depend on the attitude is ± one pose coordinate (arm_joints with
     # the cabin axis and arm distance zero), so its mean-square jerk is that coordinate's
     linear = arm_joints(lin[0], lin[1], lin[2], lin[5], 0.0, 0.0, 0.0, 0.0)

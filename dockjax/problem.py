@@ -110,7 +110,8 @@ class DockingProblem:
     Attributes: ``n_var``, ``n_intervals`` (n + 1), ``n_obj`` (2), ``kinds`` (the limit kinds,
     :data:`dockjax.robot.LIMIT_KINDS`), ``n_con`` (8 per kind: 24, or 32 with jerk limits),
     ``column_names``, ``lower``, ``upper`` (natural units, conventions §3 order), ``limits``
-    (8, kinds), and the arguments in resolved form: ``start``, ``goal`` (6,), ``arm_distance``,
+    (8, kinds), ``robot`` (what the kernel takes: D_2, home and the limit table,
+    :class:`dockjax.robot.Robot`), and the arguments in resolved form: ``start``, ``goal`` (6,), ``arm_distance``,
     ``interval_bounds`` (a pair of floats), ``travel``, ``velocity``, ``acceleration``,
     ``jerk`` ((8,) or None), ``home`` (8,), ``margin``, ``reduced``, ``right_arm``
     (never ``"auto"``), ``jerk_nodes`` (an int).
@@ -228,6 +229,12 @@ class DockingProblem:
         stack = jnp.stack if isinstance(self.travel, jax.Array) else np.stack
         cols = [self.travel, self.velocity, self.acceleration] + ([] if self.jerk is None else [self.jerk])
         return stack(cols, axis=1)
+
+    @property
+    def robot(self) -> robot.Robot:
+        """The robot's numbers as the kernel takes them (:class:`dockjax.robot.Robot`): D_2,
+        :attr:`home` and the limit table :attr:`limits` (traceable: built from the leaves)."""
+        return robot.Robot(arm_distance=self.arm_distance, home=self.home, limits=self.limits)
 
     @property
     def kinds(self) -> tuple:
@@ -402,13 +409,14 @@ def _score(problem: DockingProblem, x, screen: bool = False):
     """F (2,), G (24,), the adaptive mode's ``need`` flag and the screen's ``over`` flag of
     one candidate (``screen``: :func:`dockjax.limits.maxima_screened` instead of :func:`dockjax.limits.maxima`)."""
     h, _, c, ref = spans(problem, x)
-    F = jnp.stack([jnp.sum(h), jerk(problem, c, h, ref)])
+    F = jnp.stack([jnp.sum(h), jerk(problem.robot, c, h, ref, nodes=problem.jerk_nodes)])
     if screen and problem.right_arm != "taylor":
-        M, need, over, series = maxima_screened(problem, c, h, ref)
+        M, need, over, series = maxima_screened(problem.robot, c, h, ref)
     else:
-        M, need = maxima(problem, c, h, ref, with_need=True, screen=screen)
+        M, need = maxima(problem.robot, c, h, ref, taylor=problem.right_arm == "taylor", with_need=True,
+                         screen=screen)
         over, series = jnp.zeros((), bool), None
-    return F, columns(problem, M), need, over, series
+    return F, columns(problem.robot, M), need, over, series
 
 
 def score(problem: DockingProblem, x):
@@ -446,9 +454,9 @@ def _right_columns_taylor(problem: DockingProblem, X, screen: bool, active=None)
     of X (n, n_var) by :func:`right_taylor_maxima`. → (n, 3 · kinds)."""
     h, _, c = jax.vmap(partial(decode, problem))(X)
     ref = jax.vmap(span_angles)(c, h)
-    M = right_taylor_maxima(problem, c, h, ref, SCREEN_BAND if screen else None, active)
+    M = right_taylor_maxima(problem.robot, c, h, ref, SCREEN_BAND if screen else None, active)
     full = jnp.zeros(M.shape[:1] + (config.N_JOINTS, problem.n_kinds), M.dtype).at[:, robot.ATTITUDE_JOINTS].set(M)
-    return columns(problem, full)[:, right_columns(problem)]
+    return columns(problem.robot, full)[:, right_columns(problem)]
 
 
 ADAPTIVE_CHUNK = 32
@@ -499,8 +507,8 @@ def _full_chain_rows(problem: DockingProblem, spans, G):
         vals, _ = extrema.span_maxima(series[idx], lengths[idx])  # (k, spans × joints, 3)
         M = vals.reshape(idx.shape[0], problem.n_intervals, -1, 3).max(axis=1) + extra[idx]
         if problem.jerk is None:
-            return columns(problem, M)
-        base = columns(problem, M, problem.limits[:, :3]).reshape(M.shape)
+            return columns(problem.robot, M)
+        base = columns(problem.robot, M, problem.limits[:, :3]).reshape(M.shape)
         jerk = G[idx].reshape(M.shape[:2] + (problem.n_kinds,))[..., 3:]
         return jnp.concatenate([base, jerk], -1).reshape(idx.shape[0], -1)
 

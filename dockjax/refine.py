@@ -102,12 +102,12 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
     if problem.right_arm == "taylor":
         problem = problem.with_right_arm("bound")
     h, _, c, ref = spans(problem, x)
-    F = jnp.stack([jnp.sum(h), jerk(problem, c, h, ref, differentiable=True)])
+    F = jnp.stack([jnp.sum(h), jerk(problem.robot, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)])
     if screen:
-        M = maxima_screened(problem, c, h, ref)[0]
+        M = maxima_screened(problem.robot, c, h, ref)[0]
     else:
-        M = maxima(problem, c, h, ref)
-    return F, columns(problem, M)
+        M = maxima(problem.robot, c, h, ref)
+    return F, columns(problem.robot, M)
 
 
 # -- projection onto the box with a time cap ----------------------------------------------

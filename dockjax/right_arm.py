@@ -14,7 +14,8 @@ jerk integral nor their extrema have a closed form.
 * **Taylor** treatment (:func:`right_taylor_maxima`): Taylor models on sub-spans with a
   rigorous remainder majorant.
 
-Every function is traceable and takes the problem for its data (D_2, home, limits).
+Every function but :func:`bound_overstatement` (host-side, of a problem's decision box) is
+traceable and takes the robot's numbers (:class:`dockjax.robot.Robot`: D_2, home, limits).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from .robot import ATTITUDE_JOINTS
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
+    from .robot import Robot
 
 __all__ = [
     "right_terms", "hessian_norms", "remainder_bound", "linearisation_remainders",
@@ -40,7 +42,7 @@ __all__ = [
 ]
 
 
-def right_terms(problem: "DockingProblem", c, tau, order: int, ref) -> list:
+def right_terms(robot: "Robot", c, tau, order: int, ref) -> list:
     """Jets of the right arm's axial, lift and lateral joints ``d_R1``, ``d_R2``, ``d_R3``
     (conventions §4), each a list of its normalised Taylor coefficients 0..order.
 
@@ -54,7 +56,7 @@ def right_terms(problem: "DockingProblem", c, tau, order: int, ref) -> list:
     mid, sin_m, cos_m = ref
     near = [(_DEG * (pose[3 + i][0] - mid[:, i, None]), sin_m[:, i, None], cos_m[:, i, None]) for i in (0, 1)]
     axis = kinematics.cabin_axis_jets([_DEG * a for a in pose[3]], [_DEG * a for a in pose[4]], near)
-    joints = [kinematics.arm_joints(x, y, z, 0.0, ux, uy, uz, problem.arm_distance)
+    joints = [kinematics.arm_joints(x, y, z, 0.0, ux, uy, uz, robot.arm_distance)
               for x, y, z, ux, uy, uz in zip(pose[0], pose[1], pose[2], *axis)]
     return [[j[4 + r] for j in joints] for r in range(3)]
 
@@ -88,11 +90,11 @@ def remainder_bound(d2, hess, delta, vel, acc, jerk=None):
     return d2 * jnp.stack(cols, axis=-1)
 
 
-def linearisation_remainders(problem: "DockingProblem", c, h, ref):
+def linearisation_remainders(robot: "Robot", c, h, ref):
     """Rigorous bounds, per span, of how far the right arm's axial, lift and lateral joints
     (and their first two derivatives) can be from their first-order expansion in pitch
     and yaw about the span's middle. → (s spans, 3 joints, kinds): travel, velocity,
-    acceleration (and jerk when the problem has jerk limits), in mm, mm/s, ...
+    acceleration (and jerk when the robot has jerk limits), in mm, mm/s, ...
 
     From the series of α and β re-centred at the span's middle,
     ``|α(t) − α_m| <= Σ_{m>=1} |a_m| (h/2)^m`` and likewise for the derivatives.
@@ -106,7 +108,7 @@ def linearisation_remainders(problem: "DockingProblem", c, h, ref):
     dev = sum(ang[m] * hp[m] for m in range(1, 6))  # (6, 2)
     vel = sum(m * ang[m] * hp[m - 1] for m in range(1, 6))
     acc = sum(m * (m - 1) * ang[m] * hp[m - 2] for m in range(2, 6))
-    jrk = sum(m * (m - 1) * (m - 2) * ang[m] * hp[m - 3] for m in range(3, 6)) if problem.jerk is not None else None
+    jrk = sum(m * (m - 1) * (m - 2) * ang[m] * hp[m - 3] for m in range(3, 6)) if robot.has_jerk else None
 
     def norm(v):  # Euclidean norm with a finite gradient (0) at 0
         s = jnp.sum(v * v, -1)
@@ -114,7 +116,7 @@ def linearisation_remainders(problem: "DockingProblem", c, h, ref):
 
     sin_bound = jnp.minimum(1.0, jnp.abs(sin_m) + dev)  # (6, 2)
     hess = hessian_norms(sin_bound[:, 0], sin_bound[:, 1])  # (6, 3)
-    return remainder_bound(problem.arm_distance, hess, norm(dev), norm(vel), norm(acc),
+    return remainder_bound(robot.arm_distance, hess, norm(dev), norm(vel), norm(acc),
                            None if jrk is None else norm(jrk))
 
 
@@ -234,7 +236,7 @@ def _span_majorants(c, h, ref):
     return w, trig
 
 
-def _taylor_anchors(problem: "DockingProblem", c, h, ref):
+def _taylor_anchors(robot: "Robot", c, h, ref):
     """Twice the remainder bounds, in units of the limits, of a knot span cut into
     ``2**a`` sub-spans, at the levels ``a`` of :data:`TAYLOR_ANCHORS`. → (s spans, anchors,
     3 joints, kinds)."""
@@ -242,9 +244,9 @@ def _taylor_anchors(problem: "DockingProblem", c, h, ref):
     anchors = np.asarray(TAYLOR_ANCHORS)
     r = h[:, None] * jnp.asarray(0.5 ** (anchors + 1), h.dtype)  # (6, A)
     col = lambda i: [a[:, i, None] for a in w]  # noqa: E731
-    rem = _taylor_remainders(col(0), col(1), col(2), [t[:, None] for t in trig], r, problem.arm_distance,
-                             problem.n_kinds)
-    return 2.0 * rem / problem.limits[ATTITUDE_JOINTS]
+    rem = _taylor_remainders(col(0), col(1), col(2), [t[:, None] for t in trig], r, robot.arm_distance,
+                             robot.n_kinds)
+    return 2.0 * rem / robot.limits[ATTITUDE_JOINTS]
 
 
 def _taylor_levels(anchors, tol, top: int):
@@ -265,7 +267,7 @@ def _taylor_levels(anchors, tol, top: int):
     return jnp.minimum(jnp.min(per, axis=1), top).astype(jnp.int32)
 
 
-def _taylor_subspans(problem: "DockingProblem", c, r, tc):
+def _taylor_subspans(robot: "Robot", c, r, tc):
     """Upper and lower bounds (B, 3 joints, kinds) of the right arm's maxima on B sub-spans,
     each of centre ``tc`` (local time in its knot span) and half-width ``r`` (B,), on the
     span of coefficients c (B, 6 powers, 6 coords). See :func:`right_taylor_maxima`."""
@@ -273,13 +275,13 @@ def _taylor_subspans(problem: "DockingProblem", c, r, tc):
     # the jets' reference angles: pitch and yaw at t_c themselves (library sine and
     # cosine, accurate for any angle)
     ref = (raw[0], jnp.sin(_DEG * raw[0]), jnp.cos(_DEG * raw[0]))
-    q = right_terms(problem, c, tc[:, None], 5, ref)  # 3 × 6 × (B, 1)
+    q = right_terms(robot, c, tc[:, None], 5, ref)  # 3 × 6 × (B, 1)
     polys = jnp.stack([jnp.concatenate(t, -1) for t in q], 1)  # (B, 3, 6) about t_c
     first = jnp.stack(bspline.poly_taylor_terms(polys, -r[:, None]), -1)  # about t_c − r
-    first = first.at[..., 0].add(-problem.home[ATTITUDE_JOINTS])
+    first = first.at[..., 0].add(-robot.home[ATTITUDE_JOINTS])
     width = jnp.broadcast_to(2.0 * r[:, None], first.shape[:2])
     vals, _ = extrema.span_maxima(first, width)
-    if problem.jerk is not None:
+    if robot.has_jerk:
         vals = jnp.concatenate([vals, extrema.jerk_maxima(first, width)[..., None]], -1)
     ang = [_DEG * jnp.stack([a[:, 0], a[:, 0] + a[:, 1], a[:, 0] - a[:, 1]], -1) for a in raw]
     w = [jnp.abs(a) for a in ang[1:]]
@@ -287,11 +289,11 @@ def _taylor_subspans(problem: "DockingProblem", c, r, tc):
     trig = [jnp.minimum(1.0, jnp.abs(v) + 1e-15)
             for v in _angle_sums(sin_c[:, 0], cos_c[:, 0], sin_c[:, 1], cos_c[:, 1])]
     rem = _taylor_remainders([a[:, 0] for a in w], [a[:, 1] for a in w], [a[:, 2] for a in w],
-                             trig, r, problem.arm_distance, problem.n_kinds)  # (B, 3 joints, kinds)
+                             trig, r, robot.arm_distance, robot.n_kinds)  # (B, 3 joints, kinds)
     return vals + rem, vals - rem
 
 
-def _taylor_pass(problem: "DockingProblem", c, h, levels):
+def _taylor_pass(robot: "Robot", c, h, levels):
     """One pass of :func:`right_taylor_maxima` over a batch: every knot span k of row i cut
     into ``2**levels[i, k]`` sub-spans (none where the level is −1); the sub-spans of all
     rows form one queue, scored :data:`TAYLOR_ROUND` at a time in a ``lax.while_loop``
@@ -314,19 +316,19 @@ def _taylor_pass(problem: "DockingProblem", c, h, levels):
         j = idx - (ends[item] - k)
         r = hf[item] / (2.0 * k.astype(dtype))
         tc = (2.0 * j.astype(dtype) + 1.0) * r
-        up, low = _taylor_subspans(problem, cf[item], r, tc)
+        up, low = _taylor_subspans(robot, cf[item], r, tc)
         up = jnp.where(valid[:, None, None], up, 0.0)
         low = jnp.where(valid[:, None, None], low, 0.0)
         return g + 1, upper.at[item].max(up), lower.at[item // s].max(low)
 
-    k = problem.n_kinds
+    k = robot.n_kinds
     init = (jnp.zeros((), ends.dtype), jnp.zeros((n * s, 3, k), dtype),
             jnp.zeros((n, 3, k), dtype))
     _, upper, lower = jax.lax.while_loop(lambda carry: carry[0] * TAYLOR_ROUND < total, body, init)
     return upper.reshape(n, s, 3, k), lower
 
 
-def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None = None, active=None):
+def right_taylor_maxima(robot: "Robot", c, h, ref, band: float | None = None, active=None):
     """Rigorous maxima of the right arm's axial, lift and lateral joints (travel about home,
     |velocity|, |acceleration|) by Taylor models on sub-spans, for a batch.
 
@@ -351,9 +353,9 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
     :data:`dockjax.limits.SCREEN_BAND`), else (None) every column. A span's
     value is the smaller of its two passes' bounds (both are upper bounds). The passes are
     the two trips of one ``fori_loop``, so the compiled program holds one copy of the pass."""
-    lim = problem.limits[ATTITUDE_JOINTS]
-    shape = (3, problem.n_kinds)
-    anchors = jax.vmap(partial(_taylor_anchors, problem))(c, h, ref)  # (n, s, A, 3, kinds)
+    lim = robot.limits[ATTITUDE_JOINTS]
+    shape = (3, robot.n_kinds)
+    anchors = jax.vmap(partial(_taylor_anchors, robot))(c, h, ref)  # (n, s, A, 3, kinds)
     loose = jax.vmap(lambda a: _taylor_levels(a, jnp.full(shape, TAYLOR_LOOSE, c.dtype), TAYLOR_LEVELS))(anchors)
     if active is not None:
         loose = jnp.where(active[:, None], loose, -1)
@@ -374,7 +376,7 @@ def right_taylor_maxima(problem: "DockingProblem", c, h, ref, band: float | None
         # first's bounds): one loop of two trips compiles one copy of the pass, not two
         U1, lo, _, _ = carry
         levels = jnp.where(i == 0, loose, jax.vmap(second)(anchors, U1, lo, loose))
-        U, low = _taylor_pass(problem, c, h, levels)
+        U, low = _taylor_pass(robot, c, h, levels)
         first = i == 0
         return jnp.where(first, U, U1), jnp.where(first, low, lo), U, levels
 

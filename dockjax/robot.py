@@ -8,18 +8,22 @@
   time derivative it bounds, its unit suffix and how it scales when the trajectory is
   slowed by ``h → s h`` (by ``s^−power``). A problem's limit table has one column per kind it
   uses (:attr:`dockjax.DockingProblem.kinds`), joint-major in G.
+* :class:`Robot`: one robot's numbers as the kernel takes them (a pytree: the arm distance,
+  the home position and the limit table), :attr:`dockjax.DockingProblem.robot`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from . import config
+from .pytrees import pytree_dataclass
 
-__all__ = ["Joint", "LimitKind", "JOINTS", "ATTITUDE_JOINTS", "LIMIT_KINDS", "BASE_KINDS", "DERIVATIVES", "kinds_of",
-           "column_names", "by_kind"]
+__all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LIMIT_KINDS", "BASE_KINDS", "DERIVATIVES",
+           "kinds_of", "column_names", "by_kind"]
 
 
 @dataclass(frozen=True)
@@ -85,3 +89,33 @@ def by_kind(G) -> np.ndarray:
     :func:`column_names`)."""
     G = np.asarray(G, np.float64)
     return G.reshape(G.shape[:-1] + (len(JOINTS), G.shape[-1] // len(JOINTS)))
+
+
+@pytree_dataclass
+class Robot:
+    """One robot's numbers, as the kernel (:mod:`dockjax.limits`, :mod:`dockjax.right_arm`,
+    :mod:`dockjax.objectives`) takes them; every field is a leaf, so one compiled kernel
+    serves every robot with the same number of limit kinds.
+
+    * ``arm_distance``: D_2, the right arm's distance (mm, conventions §4), a scalar;
+    * ``home``: (8,) the joints' home position, about which travel is measured (mm, °);
+    * ``limits``: (8 joints, kinds) the limit table, columns in the order of
+      :data:`LIMIT_KINDS` (travel, velocity, acceleration and, with jerk limits, jerk).
+
+    The joint table (:data:`JOINTS`) and the pose → joints map
+    (:func:`dockjax.kinematics.arm_joints`) are the same for every robot of this design.
+    """
+
+    arm_distance: Any
+    home: Any
+    limits: Any
+
+    @property
+    def n_kinds(self) -> int:
+        """Limit kinds per joint (static: the table's shape): 3, or 4 with jerk limits."""
+        return self.limits.shape[-1]
+
+    @property
+    def has_jerk(self) -> bool:
+        """Whether the table has a jerk column (static)."""
+        return self.n_kinds > BASE_KINDS

@@ -100,7 +100,7 @@ def critical_times(problem: DockingProblem, x):
     :func:`dockjax.extrema.chain_extrema` (and, with jerk limits, the jerk's 3 of
     :func:`dockjax.extrema.jerk_times`), each with a flag that it is the span's end."""
     h, _, c, ref = spans(problem, x)
-    polys = jax.lax.stop_gradient(joint_series(problem, c, h, ref))
+    polys = jax.lax.stop_gradient(joint_series(problem.robot, c, h, ref))
     hh = jax.lax.stop_gradient(jnp.broadcast_to(h[:, None], polys.shape[:2]))
     (tt, _), (vt, _), at = extrema.chain_extrema(polys, hh)
     times = (tt, vt, at) if problem.jerk is None else (tt, vt, at, extrema.jerk_times(poly_derivative(polys, 3), hh))
@@ -124,12 +124,12 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
     L = problem.limits if limits is None else limits
     times = critical_times(problem, x) if times is None else times
     h, _, c, ref = spans(problem, x)
-    polys = materialize(joint_series(problem, c, h, ref))  # (s, 8, 6)
+    polys = materialize(joint_series(problem.robot, c, h, ref))  # (s, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     vals = [poly_eval(poly_derivative(polys, k)[..., None, :] if k else polys[..., None, :],
                       jnp.where(end, hh[..., None], jax.lax.stop_gradient(t)))
             for k, (t, end) in enumerate(times)]
-    rem = linearisation_remainders(problem, c, h, ref)  # (s, 3, kinds)
+    rem = linearisation_remainders(problem.robot, c, h, ref)  # (s, 3, kinds)
     extra = jnp.zeros(polys.shape[:2] + (problem.n_kinds,), polys.dtype).at[:, ATTITUDE_JOINTS].set(rem)
     out = []
     for k, v in enumerate(vals):
@@ -142,7 +142,7 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
 
 def _jerk(problem, x):
     h, _, c, ref = spans(problem, x)
-    return jerk(problem, c, h, ref, differentiable=True)
+    return jerk(problem.robot, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)
 
 
 _jerk_value = jax.jit(_jerk)
