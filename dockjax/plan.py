@@ -120,9 +120,9 @@ def load_limits(path: str | Path) -> dict:
 
 
 def _sampled_series(problem: DockingProblem, s: dict, j: int, kind) -> np.ndarray:
-    """|the sampled quantity| that limit ``kind`` bounds, for joint j (m,) (travel about home)."""
-    v = s[robot.DERIVATIVES[kind.order]][:, j]
-    return np.abs(v - problem.home[j]) if kind.order == 0 else np.abs(v)
+    """|the sampled quantity| that limit ``kind`` bounds, for joint j (m,)
+    (:func:`dockjax.robot.sampled_quantity`: travel about home)."""
+    return np.abs(robot.sampled_quantity(s, kind, problem.home)[:, j])
 
 
 def _sampled_peaks(problem: DockingProblem, s: dict) -> np.ndarray:

@@ -106,8 +106,7 @@ def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, titl
     pick = np.unique(np.append(np.arange(0, m, max(1, -(-m // MAX_PLOT_POINTS))), m - 1))
     pos = sample["position"]
     home = 0.5 * (pos[0] + pos[-1]) if home is None else np.asarray(home)
-    series = [((pos - home) if k.order == 0 else sample[robot.DERIVATIVES[k.order]]) / limits[:, i]
-              for i, k in enumerate(kinds)]
+    series = [robot.sampled_quantity(sample, k, home) / limits[:, i] for i, k in enumerate(kinds)]
     names = [("travel about home" if k.order == 0 else k.name) + " / limit" for k in kinds]
     t = sample["t"][pick]
     for ax, y, name in zip(axes, series, names):

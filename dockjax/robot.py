@@ -23,7 +23,7 @@ from . import config
 from .pytrees import pytree_dataclass
 
 __all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LIMIT_KINDS", "BASE_KINDS", "DERIVATIVES",
-           "kinds_of", "column_names", "by_kind"]
+           "kinds_of", "column_names", "sampled_quantity", "by_kind"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,15 @@ def column_names(n_kinds: int) -> list[str]:
     """Names of the ``8 · n_kinds`` columns of G, joint-major: ``"d_L1 travel"``,
     ``"d_L1 velocity"``, ..."""
     return [f"{j.name} {k.name}" for j in JOINTS for k in kinds_of(n_kinds)]
+
+
+def sampled_quantity(sample: dict, kind: LimitKind, home) -> np.ndarray:
+    """The signed quantity that limit ``kind`` bounds, from a plan's samples (m, 8): the
+    position about ``home`` (8,) for travel, else the time derivative of the kind's order
+    (``sample[DERIVATIVES[kind.order]]``). Its largest magnitude is what the limit caps."""
+    if kind.order == 0:
+        return np.asarray(sample["position"]) - np.asarray(home)
+    return np.asarray(sample[DERIVATIVES[kind.order]])
 
 
 def by_kind(G) -> np.ndarray:
