@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import jets
+from .robot import LEFT_ARM, RIGHT_ARM
 
 __all__ = [
     "DH_LEFT",
@@ -184,8 +185,8 @@ def forward_kinematics(joints, arm_distance):
     z = task Y); pitch and yaw from the vector between the two ends; γ from the left roll.
     """
     joints = jnp.asarray(joints)
-    left = forward_left(*joints[:4])[:3, 3]
-    right = forward_right(*joints[4:])[:3, 3]
+    left = forward_left(*joints[LEFT_ARM])[:3, 3]
+    right = forward_right(*joints[RIGHT_ARM])[:3, 3]
     to_task = lambda p: jnp.stack([p[1], p[2], p[0]])  # noqa: E731  base (Z, X, Y) → task
     kl, kr = to_task(left), to_task(right)
     axis = (kr - kl) / arm_distance

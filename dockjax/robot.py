@@ -22,7 +22,8 @@ import numpy as np
 from . import config
 from .pytrees import pytree_dataclass
 
-__all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LIMIT_KINDS", "BASE_KINDS", "DERIVATIVES",
+__all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LEFT_ARM", "RIGHT_ARM", "LIMIT_KINDS",
+           "BASE_KINDS", "DERIVATIVES",
            "kinds_of", "column_names", "sampled_quantity", "by_kind"]
 
 
@@ -55,6 +56,9 @@ class LimitKind:
 ATTITUDE_JOINTS = slice(4, 7)
 """The joints whose values depend on the attitude: the right arm's axial, lift and lateral
 joints (contiguous in the joint order)."""
+
+LEFT_ARM, RIGHT_ARM = slice(0, 4), slice(4, 8)
+"""Each arm's four joints (axial, lift, lateral, roll) in the joint order."""
 
 JOINTS: tuple[Joint, ...] = tuple(
     Joint(name, unit, ATTITUDE_JOINTS.start <= j < ATTITUDE_JOINTS.stop)
