@@ -23,8 +23,7 @@ from . import config
 from .pytrees import pytree_dataclass
 
 __all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LEFT_ARM", "RIGHT_ARM", "LIMIT_KINDS",
-           "BASE_KINDS", "DERIVATIVES",
-           "kinds_of", "column_names", "sampled_quantity", "by_kind"]
+           "BASE_KINDS", "DERIVATIVES", "kinds_of", "column_names", "sampled_quantity", "by_kind"]
 
 
 @dataclass(frozen=True)
