@@ -111,9 +111,9 @@ def maxima(robot: "Robot", c, h, ref, *, taylor: bool = False, with_need: bool =
     else:
         rems = linearisation_remainders(robot, c, h, ref)  # (s, 3 joints, kinds)
         rem = extrema.reduce_max(rems, 0)  # (3 joints, kinds)
-        lin = _with_jerk(robot, lin, polys, h, None if not robot.has_jerk else rems[..., 3])
+        lin = _with_jerk(robot, lin, polys, h, rems[..., 3] if robot.has_jerk else None)
         # the jerk column already holds the remainder (added per span by _with_jerk)
-        right = lin[ATTITUDE_JOINTS] + (rem if not robot.has_jerk else jnp.pad(rem[:, :3], ((0, 0), (0, 1))))
+        right = lin[ATTITUDE_JOINTS] + (jnp.pad(rem[:, :3], ((0, 0), (0, 1))) if robot.has_jerk else rem)
         need = jnp.any(2.0 * rem > BOUND_TOLERANCE * robot.limits[ATTITUDE_JOINTS])
     out = lin.at[ATTITUDE_JOINTS].set(right)
     return (out, need) if with_need else out
@@ -176,7 +176,7 @@ def maxima_screened(robot: "Robot", c, h, ref):
     need = jnp.any(2.0 * rem_all > BOUND_TOLERANCE * robot.limits[ATTITUDE_JOINTS])
     over = jnp.any(rest) | jnp.any(fail[:, 0])
     # the jerk (a quadratic per span) is exact and cheap: no screening
-    M = _with_jerk(robot, M, polys, h, None if not robot.has_jerk else rems[..., 3])
+    M = _with_jerk(robot, M, polys, h, rems[..., 3] if robot.has_jerk else None)
     return M, need, over, (polys.reshape(n_items, -1), hh.reshape(-1), extra)
 
 
