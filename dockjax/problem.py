@@ -409,14 +409,14 @@ def _score(problem: DockingProblem, x, screen: bool = False):
     """F (2,), G (24,), the adaptive mode's ``need`` flag and the screen's ``over`` flag of
     one candidate (``screen``: :func:`dockjax.limits.maxima_screened` instead of :func:`dockjax.limits.maxima`)."""
     h, _, c, ref = spans(problem, x)
-    F = jnp.stack([jnp.sum(h), jerk(problem.robot, c, h, ref, nodes=problem.jerk_nodes)])
+    rb = problem.robot
+    F = jnp.stack([jnp.sum(h), jerk(rb, c, h, ref, nodes=problem.jerk_nodes)])
     if screen and problem.right_arm != "taylor":
-        M, need, over, series = maxima_screened(problem.robot, c, h, ref)
+        M, need, over, series = maxima_screened(rb, c, h, ref)
     else:
-        M, need = maxima(problem.robot, c, h, ref, taylor=problem.right_arm == "taylor", with_need=True,
-                         screen=screen)
+        M, need = maxima(rb, c, h, ref, taylor=problem.right_arm == "taylor", with_need=True, screen=screen)
         over, series = jnp.zeros((), bool), None
-    return F, columns(problem.robot, M), need, over, series
+    return F, columns(rb, M), need, over, series
 
 
 def score(problem: DockingProblem, x):

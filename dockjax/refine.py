@@ -102,12 +102,10 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
     if problem.right_arm == "taylor":
         problem = problem.with_right_arm("bound")
     h, _, c, ref = spans(problem, x)
-    F = jnp.stack([jnp.sum(h), jerk(problem.robot, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)])
-    if screen:
-        M = maxima_screened(problem.robot, c, h, ref)[0]
-    else:
-        M = maxima(problem.robot, c, h, ref)
-    return F, columns(problem.robot, M)
+    rb = problem.robot
+    F = jnp.stack([jnp.sum(h), jerk(rb, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)])
+    M = maxima_screened(rb, c, h, ref)[0] if screen else maxima(rb, c, h, ref)
+    return F, columns(rb, M)
 
 
 # -- projection onto the box with a time cap ----------------------------------------------
