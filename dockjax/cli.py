@@ -383,7 +383,7 @@ class PlanArgs:
     goal: Pose = config.GOAL
     """Docking pose x y z [mm] pitch yaw roll [deg]."""
     limits: Path | None = None
-    """TOML or JSON file overriding travel, velocity, acceleration (4 or 8 numbers) and home (8)."""
+    """TOML or JSON file overriding travel, velocity, acceleration, jerk (4 or 8 numbers) and home (8)."""
     arm_distance: float = config.ARM_DISTANCE
     """Distance D2 between the arm ends [mm]."""
     interval_bounds: tuple[float, float] = config.INTERVAL_BOUNDS

@@ -13,6 +13,7 @@ import jax.numpy as jnp
 from . import bspline, config
 from .config import DEG as _DEG
 from .fusion import materialize
+from .robot import POSE_ATTITUDE
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
@@ -45,7 +46,7 @@ def span_angles(c, h):
     c: (s, 6, 6), h: (s,) → (mid (s, 2), sin (s, 2), cos (s, 2)): the reference angles of
     the expansions used for the right arm (one trig call per span and angle).
     """
-    mid = bspline.poly_eval(jnp.swapaxes(c[..., 3:5], 1, 2), 0.5 * h[:, None])  # (s, 2)
+    mid = bspline.poly_eval(jnp.swapaxes(c[..., POSE_ATTITUDE], 1, 2), 0.5 * h[:, None])  # (s, 2)
     return mid, jnp.sin(_DEG * mid), jnp.cos(_DEG * mid)
 
 

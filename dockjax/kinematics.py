@@ -23,8 +23,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from . import jets
-from .robot import LEFT_ARM, RIGHT_ARM
+from .robot import LEFT_ARM, RIGHT_ARM, arm_joints, cabin_axis
 
 __all__ = [
     "DH_LEFT",
@@ -35,10 +34,7 @@ __all__ = [
     "forward_right",
     "eq1_left",
     "eq2_right",
-    "cabin_axis",
     "right_end_point",
-    "arm_joints",
-    "cabin_axis_jets",
     "inverse_kinematics",
     "forward_kinematics",
 ]
@@ -118,52 +114,10 @@ def eq2_right(d1, d2, d3, theta_deg):
     )
 
 
-def cabin_axis(pitch_deg, yaw_deg):
-    """Unit cabin axis ``u(α, β) = (cos α sin β, sin α, cos α cos β)`` in task XYZ (conventions §4)."""
-    a, b = jnp.deg2rad(pitch_deg), jnp.deg2rad(yaw_deg)
-    return jnp.stack([jnp.cos(a) * jnp.sin(b), jnp.sin(a), jnp.cos(a) * jnp.cos(b)], axis=-1)
-
-
 def right_end_point(pose, arm_distance):
     """Right arm end ``K_R = K_L + D_2 u(α, β)`` in task XYZ (mm). pose: (..., 6) → (..., 3)."""
     pose = jnp.asarray(pose)
     return pose[..., :3] + arm_distance * cabin_axis(pose[..., 3], pose[..., 4])
-
-
-def arm_joints(x, y, z, roll, axis_x, axis_y, axis_z, arm_distance) -> tuple:
-    """The one map from the cabin pose to the eight joints (Eqs. 6–7 read per conventions §4).
-
-    ``x, y, z``: the left arm's end point (mm); ``roll`` γ (°); ``axis_*``: the cabin axis
-    ``u(α, β) = (cos α sin β, sin α, cos α cos β)`` (:func:`cabin_axis`); the right arm's
-    end is ``K_R = K_L + D_2 u``. Returns the joints in the order
-    ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` =
-    ``[−z, y, −x, γ, z + D_2 u_z, y + D_2 u_y, −(x + D_2 u_x), −γ]``.
-
-    Linear in its arguments, so it serves values, power series (one coefficient array per
-    argument) and Taylor coefficients alike: every caller in dockjax — the inverse
-    kinematics, the kernel's joint series and jets, :class:`dockjax.Trajectory` — goes
-    through it.
-    """
-    d2 = arm_distance
-    return (-z, y, -x, roll, z + d2 * axis_z, y + d2 * axis_y, -(x + d2 * axis_x), -roll)
-
-
-def cabin_axis_jets(pitch, yaw, near=None) -> tuple[list, list, list]:
-    """Jets (:mod:`dockjax.jets`) of the cabin axis ``(u_x, u_y, u_z)`` from jets of pitch
-    and yaw (lists of normalised Taylor coefficients, in radians).
-
-    ``near``: None (the sines and cosines of the angles' values by the library), or, per
-    angle, ``(offset, sin ref, cos ref)``: the value is ``ref + offset`` (radians, a small
-    offset from a reference angle whose sine and cosine are known), and its sine and cosine
-    come from :func:`dockjax.jets.sin_cos_near`."""
-    trig = []
-    for a, ref in zip((pitch, yaw), near or (None, None)):
-        trig.append(jets.sin_cos(a) if ref is None else jets.sin_cos(a, *jets.sin_cos_near(*ref)))
-    (sa, ca), (sb, cb) = trig
-    # u_z before u_x: the order of the uses of cos α fixes the order in which reverse-mode
-    # differentiation sums its cotangents, hence the gradients' last bits
-    uz = jets.mul(ca, cb)
-    return jets.mul(ca, sb), sa, uz
 
 
 def inverse_kinematics(pose, arm_distance):

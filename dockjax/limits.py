@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 
 import jax.numpy as jnp
 
-from . import extrema, kinematics
+from . import extrema
 from .config import DEG as _DEG
 from .fusion import materialize
 from .right_arm import linearisation_remainders, right_taylor_maxima
@@ -70,11 +70,11 @@ def joint_series(robot: "Robot", c, h, ref):
     db = _DEG * (b - bm * e0)
     # the cabin axis linearised in pitch and yaw about the span's middle, then the one
     # pose→joints map (linear, so it maps the power series coefficient by coefficient)
-    # (u_z, u_y, u_x in this order: see kinematics.cabin_axis_jets)
+    # (u_z, u_y, u_x in this order: see robot.cabin_axis_jets)
     uz = ca * cb * e0 - sa * cb * da - ca * sb * db
     uy = sa * e0 + ca * da
     ux = ca * sb * e0 - sa * sb * da + ca * cb * db
-    polys = jnp.stack(kinematics.arm_joints(x, y, z, g, ux, uy, uz, robot.arm_distance), axis=1)
+    polys = jnp.stack(robot.joints(x, y, z, g, ux, uy, uz), axis=1)
     return polys - robot.home[None, :, None] * e0
 
 

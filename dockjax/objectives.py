@@ -17,9 +17,8 @@ from typing import TYPE_CHECKING
 import jax.numpy as jnp
 import numpy as np
 
-from .kinematics import arm_joints
 from .right_arm import right_terms
-from .robot import JOINTS
+from .robot import JOINTS, arm_joints
 
 if TYPE_CHECKING:
     from .robot import Robot

@@ -209,7 +209,7 @@ class DockingProblem:
         jerk_nodes = self.jerk_nodes
         if jerk_nodes is None:
             box = self.pose_box()
-            jerk_nodes = jerk_nodes_for(float(np.max(box[1, 3:5] - box[0, 3:5])))
+            jerk_nodes = jerk_nodes_for(float(np.max(box[1, robot.POSE_ATTITUDE] - box[0, robot.POSE_ATTITUDE])))
         set_("jerk_nodes", checks.integer("jerk_nodes", jerk_nodes, 3, 64))
 
     @property

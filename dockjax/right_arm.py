@@ -4,8 +4,8 @@ These three joints go through sin/cos of pitch and yaw (conventions §4), so nei
 jerk integral nor their extrema have a closed form.
 
 * :func:`right_terms`: their Taylor coefficients at any local times (Taylor-mode
-  arithmetic through :func:`dockjax.kinematics.cabin_axis_jets` and the one pose→joints
-  map :func:`dockjax.kinematics.arm_joints`), for the jerk objective and the Taylor models.
+  arithmetic through :func:`dockjax.robot.cabin_axis_jets` and the one pose→joints
+  map :func:`dockjax.robot.arm_joints`), for the jerk objective and the Taylor models.
 * **Bound** treatment: the first-order expansion in pitch and yaw about each span's middle
   is a quintic in time, whose extrema the root chain finds exactly
   (:func:`dockjax.limits.joint_series`); :func:`linearisation_remainders` bounds how far
@@ -28,9 +28,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import bspline, extrema, kinematics
+from . import bspline, extrema
 from .config import DEG as _DEG
-from .robot import ATTITUDE_JOINTS
+from .robot import ATTITUDE_JOINTS, POSE_ATTITUDE, cabin_axis_jets
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
@@ -49,14 +49,14 @@ def right_terms(robot: "Robot", c, tau, order: int, ref) -> list:
     c: (s, 6 powers, 6 coords) span coefficients; tau: (s, m) local times per span; ref:
     :func:`dockjax.decoding.span_angles` of the spans (the jets' reference angles). Each
     coefficient is (s, m). The pose's jets go through the cabin axis
-    (:func:`dockjax.kinematics.cabin_axis_jets`) and the one pose→joints map
-    (:func:`dockjax.kinematics.arm_joints`), coefficient by coefficient (it is linear).
+    (:func:`dockjax.robot.cabin_axis_jets`) and the one pose→joints map
+    (:meth:`dockjax.robot.Robot.joints`), coefficient by coefficient (it is linear).
     """
     pose = [bspline.poly_taylor_terms(c[:, None, :, i], tau, order) for i in range(5)]
     mid, sin_m, cos_m = ref
     near = [(_DEG * (pose[3 + i][0] - mid[:, i, None]), sin_m[:, i, None], cos_m[:, i, None]) for i in (0, 1)]
-    axis = kinematics.cabin_axis_jets([_DEG * a for a in pose[3]], [_DEG * a for a in pose[4]], near)
-    joints = [kinematics.arm_joints(x, y, z, 0.0, ux, uy, uz, robot.arm_distance)
+    axis = cabin_axis_jets([_DEG * a for a in pose[3]], [_DEG * a for a in pose[4]], near)
+    joints = [robot.joints(x, y, z, 0.0, ux, uy, uz)
               for x, y, z, ux, uy, uz in zip(pose[0], pose[1], pose[2], *axis)]
     return [[j[4 + r] for j in joints] for r in range(3)]
 
@@ -101,7 +101,7 @@ def linearisation_remainders(robot: "Robot", c, h, ref):
     """
     mid, sin_m, _ = ref
     half = 0.5 * h[:, None]
-    ang = [_DEG * jnp.abs(a) for a in bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, 3:5], 1, 2), half)]
+    ang = [_DEG * jnp.abs(a) for a in bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, POSE_ATTITUDE], 1, 2), half)]
     hp = [jnp.ones_like(half)]  # powers of h/2 by products (no pow): (6, 1) each
     for _ in range(5):
         hp.append(hp[-1] * half)
@@ -128,8 +128,8 @@ def bound_overstatement(problem: "DockingProblem") -> float:
     range). Host-side
     (NumPy data of a constructed problem)."""
     box = problem.pose_box()
-    rng = _DEG * (box[1, 3:5] - box[0, 3:5])
-    far = np.minimum(1.0, _DEG * np.max(np.abs(box[:, 3:5]), axis=0))
+    rng = _DEG * (box[1, POSE_ATTITUDE] - box[0, POSE_ATTITUDE])
+    far = np.minimum(1.0, _DEG * np.max(np.abs(box[:, POSE_ATTITUDE]), axis=0))
     h_lo = problem.interval_bounds[0]
     with jax.enable_x64(True):
         hess = np.asarray(hessian_norms(far[0], far[1]))
@@ -223,7 +223,7 @@ def _span_majorants(c, h, ref):
     re-centred at the span's middle) and bounds of the six sines and cosines of
     :func:`_taylor_remainders` (their values at the middle plus the largest deviation)."""
     half = 0.5 * h[:, None]
-    m = bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, 3:5], 1, 2), half)  # 6 × (6 spans, 2)
+    m = bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, POSE_ATTITUDE], 1, 2), half)  # 6 × (6 spans, 2)
     m = [_DEG * jnp.stack([a[:, 0], a[:, 0] + a[:, 1], a[:, 0] - a[:, 1]], -1) for a in m]
     hp = [jnp.ones_like(half)]
     for _ in range(5):
@@ -271,7 +271,7 @@ def _taylor_subspans(robot: "Robot", c, r, tc):
     """Upper and lower bounds (B, 3 joints, kinds) of the right arm's maxima on B sub-spans,
     each of centre ``tc`` (local time in its knot span) and half-width ``r`` (B,), on the
     span of coefficients c (B, 6 powers, 6 coords). See :func:`right_taylor_maxima`."""
-    raw = bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, 3:5], 1, 2), tc[:, None])  # 6 × (B, 2), °
+    raw = bspline.poly_taylor_terms(jnp.swapaxes(c[:, :, POSE_ATTITUDE], 1, 2), tc[:, None])  # 6 × (B, 2), °
     # the jets' reference angles: pitch and yaw at t_c themselves (library sine and
     # cosine, accurate for any angle)
     ref = (raw[0], jnp.sin(_DEG * raw[0]), jnp.cos(_DEG * raw[0]))

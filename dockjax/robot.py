@@ -2,8 +2,9 @@
 
 * :data:`JOINTS`: the eight joints ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` with
   their units and whether they depend on the cabin's attitude (pitch and yaw: the right
-  arm's axial, lift and lateral joints, :data:`ATTITUDE_JOINTS`); the pose → joints map is
-  :func:`dockjax.kinematics.arm_joints`.
+  arm's axial, lift and lateral joints, :data:`ATTITUDE_JOINTS`), and the one pose → joints
+  map, :func:`arm_joints` (Eqs. 6–7 read per conventions §4) with the cabin axis
+  :func:`cabin_axis` and its Taylor series :func:`cabin_axis_jets`.
 * :data:`LIMIT_KINDS`: travel, velocity, acceleration and jerk, each with the order of the
   time derivative it bounds, its unit suffix and how it scales when the trajectory is
   slowed by ``h → s h`` (by ``s^−power``). A problem's limit table has one column per kind it
@@ -17,13 +18,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import jax.numpy as jnp
 import numpy as np
 
-from . import config
+from . import config, jets
 from .pytrees import pytree_dataclass
 
 __all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LEFT_ARM", "RIGHT_ARM", "LIMIT_KINDS",
-           "BASE_KINDS", "DERIVATIVES", "kinds_of", "column_names", "sampled_quantity", "by_kind"]
+           "BASE_KINDS", "DERIVATIVES", "POSE_ATTITUDE", "kinds_of", "column_names", "sampled_quantity", "by_kind",
+           "cabin_axis", "cabin_axis_jets", "arm_joints"]
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,10 @@ class LimitKind:
 ATTITUDE_JOINTS = slice(4, 7)
 """The joints whose values depend on the attitude: the right arm's axial, lift and lateral
 joints (contiguous in the joint order)."""
+
+POSE_ATTITUDE = slice(3, 5)
+"""The attitude angles pitch α and yaw β in a pose ``[x, y, z, α, β, γ]`` (and in a control
+point): the coordinates the joints of :data:`ATTITUDE_JOINTS` depend on."""
 
 LEFT_ARM, RIGHT_ARM = slice(0, 4), slice(4, 8)
 """Each arm's four joints (axial, lift, lateral, roll) in the joint order."""
@@ -103,6 +110,49 @@ def by_kind(G) -> np.ndarray:
     return G.reshape(G.shape[:-1] + (len(JOINTS), G.shape[-1] // len(JOINTS)))
 
 
+
+def cabin_axis(pitch_deg, yaw_deg):
+    """Unit cabin axis ``u(α, β) = (cos α sin β, sin α, cos α cos β)`` in task XYZ (conventions §4)."""
+    a, b = jnp.deg2rad(pitch_deg), jnp.deg2rad(yaw_deg)
+    return jnp.stack([jnp.cos(a) * jnp.sin(b), jnp.sin(a), jnp.cos(a) * jnp.cos(b)], axis=-1)
+
+
+def cabin_axis_jets(pitch, yaw, near=None) -> tuple[list, list, list]:
+    """Jets (:mod:`dockjax.jets`) of the cabin axis ``(u_x, u_y, u_z)`` from jets of pitch
+    and yaw (lists of normalised Taylor coefficients, in radians).
+
+    ``near``: None (the sines and cosines of the angles' values by the library), or, per
+    angle, ``(offset, sin ref, cos ref)``: the value is ``ref + offset`` (radians, a small
+    offset from a reference angle whose sine and cosine are known), and its sine and cosine
+    come from :func:`dockjax.jets.sin_cos_near`."""
+    trig = []
+    for a, ref in zip((pitch, yaw), near or (None, None)):
+        trig.append(jets.sin_cos(a) if ref is None else jets.sin_cos(a, *jets.sin_cos_near(*ref)))
+    (sa, ca), (sb, cb) = trig
+    # u_z before u_x: the order of the uses of cos α fixes the order in which reverse-mode
+    # differentiation sums its cotangents, hence the gradients' last bits
+    uz = jets.mul(ca, cb)
+    return jets.mul(ca, sb), sa, uz
+
+
+def arm_joints(x, y, z, roll, axis_x, axis_y, axis_z, arm_distance) -> tuple:
+    """The one map from the cabin pose to the eight joints (Eqs. 6–7 read per conventions §4).
+
+    ``x, y, z``: the left arm's end point (mm); ``roll`` γ (°); ``axis_*``: the cabin axis
+    ``u(α, β) = (cos α sin β, sin α, cos α cos β)`` (:func:`cabin_axis`); the right arm's
+    end is ``K_R = K_L + D_2 u``. Returns the joints in the order
+    ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` =
+    ``[−z, y, −x, γ, z + D_2 u_z, y + D_2 u_y, −(x + D_2 u_x), −γ]``.
+
+    Linear in its arguments, so it serves values, power series (one coefficient array per
+    argument) and Taylor coefficients alike: every caller in dockjax — the inverse
+    kinematics (:func:`dockjax.kinematics.inverse_kinematics`), the kernel's joint series and
+    jets (through :meth:`Robot.joints`), :class:`dockjax.Trajectory` — goes through it.
+    """
+    d2 = arm_distance
+    return (-z, y, -x, roll, z + d2 * axis_z, y + d2 * axis_y, -(x + d2 * axis_x), -roll)
+
+
 @pytree_dataclass
 class Robot:
     """One robot's numbers, as the kernel (:mod:`dockjax.limits`, :mod:`dockjax.right_arm`,
@@ -114,8 +164,9 @@ class Robot:
     * ``limits``: (8 joints, kinds) the limit table, columns in the order of
       :data:`LIMIT_KINDS` (travel, velocity, acceleration and, with jerk limits, jerk).
 
-    The joint table (:data:`JOINTS`) and the pose → joints map
-    (:func:`dockjax.kinematics.arm_joints`) are the same for every robot of this design.
+    The joint table (:data:`JOINTS`) and the form of the pose → joints map
+    (:func:`arm_joints`) are the same for every robot of this design; :meth:`joints` applies
+    the map with this robot's arm distance.
     """
 
     arm_distance: Any
@@ -131,3 +182,8 @@ class Robot:
     def has_jerk(self) -> bool:
         """Whether the table has a jerk column (static)."""
         return self.n_kinds > BASE_KINDS
+
+    def joints(self, x, y, z, roll, axis_x, axis_y, axis_z) -> tuple:
+        """The eight joints of this robot from the pose's terms: :func:`arm_joints` with
+        ``D_2 = arm_distance`` (values, power series or Taylor coefficients alike)."""
+        return arm_joints(x, y, z, roll, axis_x, axis_y, axis_z, self.arm_distance)

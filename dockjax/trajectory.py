@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import bspline, checks, config, jets, kinematics
+from . import bspline, checks, config, jets, robot
 from .config import DEG as _DEG
 from .decoding import decode
 from .io import atomic_write_text
@@ -67,8 +67,8 @@ def _jets_at(problem: "DockingProblem", x, t):
     tau = t - u[bspline.DEGREE + k]
     pose = bspline.poly_taylor(jnp.swapaxes(c[k], 1, 2), tau[:, None], 3)  # (m, 6, 4)
     px, py, pz, pa, pb, pg = (pose[:, i] for i in range(6))  # stacked jets (m, 4)
-    axis = (jets.stack(u) for u in kinematics.cabin_axis_jets(jets.terms(_DEG * pa), jets.terms(_DEG * pb)))
-    joints = jnp.stack(kinematics.arm_joints(px, py, pz, pg, *axis, problem.arm_distance), axis=1)
+    axis = (jets.stack(u) for u in robot.cabin_axis_jets(jets.terms(_DEG * pa), jets.terms(_DEG * pb)))
+    joints = jnp.stack(problem.robot.joints(px, py, pz, pg, *axis), axis=1)
     return jets.derivatives(pose), jets.derivatives(joints)
 
 

@@ -127,3 +127,27 @@ def test_data_flows_one_way():
                                                    "dockjax.plan"))}, (m, r)
     assert not {x for x in reach("dockjax.metrics") if x.startswith(("dockjax.algorithms", "dockjax.optimize"))}
     assert "dockjax.cli" not in reach("dockjax.sweep")
+
+
+def test_the_robot_geometry_lives_in_one_module():
+    """Which joints form an arm, which depend on the attitude and where the attitude sits in a
+    pose are named once, in ``dockjax/robot.py`` (``LEFT_ARM``, ``RIGHT_ARM``,
+    ``ATTITUDE_JOINTS``, ``POSE_ATTITUDE``), beside the one pose → joints map: no other module
+    writes a constant index range (``x[4:7]``, ``slice(0, 4)``), and the kernel takes the map
+    from the robot, not from the kinematics module."""
+    edges, _ = _graph()
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.name == "robot.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Slice) and all(isinstance(b, ast.Constant) for b in (node.lower, node.upper)):
+                if node.upper.value - node.lower.value > 1:
+                    found.append(f"{path.name}:{node.lineno} [{node.lower.value}:{node.upper.value}]")
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "slice" and node.args and all(
+                    isinstance(a, ast.Constant) for a in node.args):
+                found.append(f"{path.name}:{node.lineno} {ast.unparse(node)}")
+    assert not found, found
+    for m in ("limits", "right_arm", "objectives", "decoding", "trajectory"):
+        assert "dockjax.kinematics" not in edges[f"dockjax.{m}"], m
+        assert "dockjax.robot" in edges[f"dockjax.{m}"], m
