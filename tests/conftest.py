@@ -51,6 +51,20 @@ CLASSIC_EMITTERS = "--xla_cpu_use_fusion_emitters=false"
 TEST_FLAGS = (CLASSIC_EMITTERS, "--xla_backend_optimization_level=2")
 
 
+SHORT_IMOCS = dict(pop_size=8, max_iter=3, rho=[0.3, 0.5], alpha_max=[0.1, 0.2])
+"""Two short IMOCS runs of the docking problem with per-run hyper-parameters and a
+hypervolume history, as the README's ``optimize`` snippet and a sweep's chunk run them: one
+compiled program for all of them (through the persistent compilation cache)."""
+
+
+def short_imocs_runs(problem):
+    """:data:`SHORT_IMOCS` on ``problem``, seeds 0 and 1."""
+    from dockjax.algorithms import imocs
+    from dockjax.optimize import optimize
+
+    return optimize("imocs", problem, params=imocs.Params(**SHORT_IMOCS), seeds=[0, 1], hv_ref=[60, 5])
+
+
 def pytest_configure(config):
     flags = os.environ.get("XLA_FLAGS", "").split()
     os.environ["XLA_FLAGS"] = " ".join(flags + [f for f in TEST_FLAGS if f not in flags])

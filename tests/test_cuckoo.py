@@ -20,6 +20,7 @@ from dockjax.algorithms.operators import (
 from dockjax.algorithms.zdt import ZDT1
 from dockjax.optimize import optimize
 from tests import reference as R
+from tests.conftest import SHORT_IMOCS, short_imocs_runs
 
 
 def _igd(F, front):
@@ -126,9 +127,8 @@ def test_cuckoo_searches_reach_the_zdt1_front(name, pymoo_zdt1_igd):
 
 @pytest.fixture(scope="module")
 def docking_runs():
-    # the shape of a sweep's pilot in tests/test_sweep.py: one compiled program
     p = DockingProblem()
-    return p, optimize("imocs", p, seeds=range(2), pop_size=8, n_iter=3)
+    return p, short_imocs_runs(p)  # the program of the README's snippet and the sweeps
 
 
 def test_docking_final_feasible_sets_pass_the_dense_check(docking_runs):
@@ -142,10 +142,12 @@ def test_docking_final_feasible_sets_pass_the_dense_check(docking_runs):
 
 def test_same_key_gives_bit_identical_runs_and_batching_does_not_change_them(docking_runs):
     p, r = docking_runs
-    again = optimize("imocs", p, seeds=range(2), pop_size=8, n_iter=3)
+    again = short_imocs_runs(p)
     np.testing.assert_array_equal(r.F, again.F)
     np.testing.assert_array_equal(r.X, again.X)
-    single = [optimize("imocs", p, seeds=[s], pop_size=8, n_iter=3) for s in (0, 1)]
+    # each run alone, with its own hyper-parameters as plain numbers
+    single = [optimize("imocs", p, seeds=[s], pop_size=8, n_iter=3, rho=SHORT_IMOCS["rho"][s],
+                       alpha_max=SHORT_IMOCS["alpha_max"][s]) for s in (0, 1)]
     from dockjax.metrics import hypervolume_2d
 
     ref = np.array([65.0, 20.0])

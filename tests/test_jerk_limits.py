@@ -116,7 +116,12 @@ ALL_MODE_FAMILIES = (2,) if settings.default.max_examples <= 25 else tuple(range
 """Families (n_control) checked in every mode: one by default (the plan test's), as the
 "taylor" and "adaptive" kernels take ~45 s to compile per family and ~9 s to trace and load
 from the persistent cache; every family from 1 to 6 under ``--hypothesis-profile thorough``.
-The bound mode is checked in every family from 1 to 6 in any case."""
+The bound mode is checked in more families: :data:`BOUND_FAMILIES`."""
+BOUND_FAMILIES = (1, 2, 6) if settings.default.max_examples <= 25 else tuple(range(1, 7))
+"""Families checked in the bound mode: the smallest, the every-mode family and a larger one
+by default (each new family compiles two kernels); every family from 1 to 6 under
+``--hypothesis-profile thorough``. The paper's family (5) with jerk limits is checked by
+:func:`test_linear_joints_jerk_is_exact_in_bound_mode`."""
 CASE = dict(pos=(760.0, -20.0, -1400.0), att=(5.0, -3.0, 185.0), move=(20.0, 20.0, 100.0, 30.0, -30.0, 5.0),
             log_d2=math.log10(2000.0), log_jerk=[1.0, 1.0, 0.0, 1.0] * 2, per_joint=False, log_lo=0.0, ratio=4.0,
             seed=1, joint=5, eps=0.0)
@@ -162,7 +167,7 @@ def test_every_column_is_certified_in_every_mode(n_control, **cfg):
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(n_control=st.integers(1, 6), **CONFIG)
+@given(n_control=st.sampled_from(BOUND_FAMILIES), **CONFIG)
 @example(n_control=6, **CASE)
 def test_every_column_is_certified_in_bound_mode_in_every_family(n_control, **cfg):
     check_configuration(("bound",), n_control, **cfg)

@@ -13,6 +13,7 @@ from dockjax.best_known import best_known_front
 from dockjax.metrics import hypervolume
 from dockjax.refine import refine
 from dockjax.solve import straight_line
+from tests.conftest import short_imocs_runs
 from tests.reference import dense_check
 
 HV_REF = (61.0, 20.0)
@@ -26,11 +27,7 @@ def problem():
 
 @pytest.fixture(scope="module")
 def imocs_result(problem):
-    from dockjax.optimize import optimize
-
-    # the shape of a sweep's pilot in the sweep tests (one compilation, shared through the
-    # persistent compilation cache of the test run)
-    return optimize("imocs", problem, seeds=[0, 1], pop_size=8, n_iter=3)
+    return short_imocs_runs(problem)  # the program of the README's snippet and the sweeps
 
 
 @pytest.fixture(scope="module")

@@ -157,7 +157,7 @@ def test_non_positive_interval_in_X_raises_or_is_not_clipped(problem):
     x = R.straight_line_x(START, GOAL, (8.0,) * 6)
     x[2] = -1.0
     try:
-        F, G = problem.evaluate(np.tile(x, (35, 1)))
+        F, G = problem.evaluate(np.tile(x, (16, 1)))
     except ValueError as err:
         assert "X" in str(err) or "interval" in str(err)
     else:  # evaluated as given: T = Σ h with the negative interval, not with 3.5
@@ -174,7 +174,7 @@ def test_X_slightly_outside_box_is_evaluated_as_given(problem):
         np.where(rng.random(36) < 0.5, p.lower - 0.02 * width, p.upper + 0.02 * width),
     ])
     clipped = np.clip(outside[:1], p.lower, p.upper)
-    filler = rng.uniform(p.lower, p.upper, (31, 36))  # 35 rows: the batch size other tests use
+    filler = rng.uniform(p.lower, p.upper, (12, 36))  # 16 rows: the compiled batch of other tests
     F, G = (np.asarray(a) for a in p.evaluate(np.vstack([outside, clipped, filler])))
     assert np.all(np.isfinite(F)) and np.all(np.isfinite(G))
     for i, x in enumerate(outside):

@@ -56,9 +56,8 @@ for name, value in shared.items():
 from dockjax import DockingProblem
 problem = DockingProblem()
 X = np.random.default_rng(1).uniform(problem.lower, problem.upper, (600, problem.n_var))
-for label, d in (("one", 1), ("two", None)):
-    for screen in (True, False):
-        out[f"evaluate_{label}_{screen}"] = np.concatenate(problem.evaluate(X, devices=d, screen=screen), axis=1)
+for label, d, screen in (("one", 1, False), ("two", None, False), ("two", None, True)):
+    out[f"evaluate_{label}_{screen}"] = np.concatenate(problem.evaluate(X, devices=d, screen=screen), axis=1)
 with jax.enable_x64(True):
     rng = np.random.default_rng(0)
     c = jnp.asarray(rng.normal(size=(6, 8, 6)))
@@ -134,20 +133,20 @@ def test_share_rows_gathers_results_of_several_dtypes_and_shapes(other_process):
 def test_evaluate_shared_over_two_devices_equals_one_device(other_process):
     """``DockingProblem.evaluate`` shares 600 rows out over two devices (320 each, padded):
     without screening the scores must equal one device's to rounding (the rows sit at
-    other places of the vectorised loops); with it, F likewise, and each G column within
-    the screen's allowance (a row may be re-scored by the full chain in one layout and not
-    the other, and both values are valid)."""
+    other places of the vectorised loops); with it, F likewise, and each G column between
+    the exact one-device value and that plus the screen's allowance (a column outside the
+    screen's band may overstate by at most :data:`dockjax.limits.SCREEN_SLACK`, never
+    understate)."""
     from dockjax.limits import SCREEN_SLACK
 
     o = other_process
-    for screen in ("True", "False"):
-        one, two = o[f"evaluate_one_{screen}"], o[f"evaluate_two_{screen}"]
-        assert one.shape == two.shape == (600, 26) and np.all(np.isfinite(one))
-        np.testing.assert_allclose(two[:, :2], one[:, :2], rtol=1e-12)
-        tol = 1e-12 if screen == "False" else SCREEN_SLACK
-        np.testing.assert_allclose(two[:, 2:], one[:, 2:], rtol=0, atol=tol)
-    # the screened columns are never below the exact ones
-    assert np.all(o["evaluate_two_True"][:, 2:] >= o["evaluate_one_False"][:, 2:] - 1e-12)
+    one, two, screened = o["evaluate_one_False"], o["evaluate_two_False"], o["evaluate_two_True"]
+    assert one.shape == two.shape == screened.shape == (600, 26) and np.all(np.isfinite(one))
+    np.testing.assert_allclose(two[:, :2], one[:, :2], rtol=1e-12)
+    np.testing.assert_allclose(two[:, 2:], one[:, 2:], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(screened[:, :2], one[:, :2], rtol=1e-12)
+    excess = screened[:, 2:] - one[:, 2:]
+    assert excess.min() >= -1e-12 and excess.max() <= SCREEN_SLACK, (excess.min(), excess.max())
 
 
 def test_derivative_of_the_maxima_survives_recomputation(other_process):
