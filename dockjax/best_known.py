@@ -18,12 +18,14 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from tqdm import tqdm
 
 from . import checks, config
 from .io import DamagedFileError, atomic_savez, load_npz
@@ -62,7 +64,7 @@ class FrontResult:
 
 def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: int = 20, line: bool = False,
                      steps: int = 600, learning_rate: float = 0.05, penalty: float = 10.0, margin: float = 1e-4,
-                     rows: int | None = None) -> FrontResult:
+                     rows: int | None = None, progress: bool = False) -> FrontResult:
     """An ε-constraint sweep of T from the shortest feasible time to ``(n + 1) h_hi`` (the
     longest T; ``6 h_hi`` in the paper's family).
 
@@ -77,6 +79,8 @@ def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: i
 
     Returns the kernel-feasible non-dominated points of both, sorted by T; ``targets`` the
     caps of step 2. Computed from the problem alone, without seeing any optimiser's front.
+    ``progress``: a bar on stderr counting the ``n_exact + 2`` steps (the shortest time,
+    each anchor, the polishing batch).
     Raises ValueError on bad settings and :class:`dockjax.solve.PlanError` (naming the
     limit) when no trajectory of the decision box meets the limits.
     """
@@ -84,22 +88,34 @@ def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: i
     checks.integer("n_points", n_points, 2)
     checks.integer("n_exact", n_exact, 2)
     t0 = time.perf_counter()
+    with tqdm(total=int(n_exact) + 2, desc="best-known front", unit="step", disable=not progress, file=sys.stderr,
+              leave=False) as bar:
+        return _best_known_front(problem, int(n_points), int(n_exact), line, steps, learning_rate, penalty, margin,
+                                 rows, bar, t0)
+
+
+def _best_known_front(problem, n_points, n_exact, line, steps, learning_rate, penalty, margin, rows, bar, t0):
     n = problem.n_intervals
+    bar.set_postfix_str("shortest time")
     fastest = shortest(problem, straight_line(problem, [n * problem.interval_bounds[0]])[0])
     if fastest is None:
         raise infeasibility(problem)
+    bar.update()
+    bar.set_postfix_str("SQP anchors")
     t_max = n * problem.interval_bounds[1]
-    caps = fastest.F[0] + (t_max - fastest.F[0]) * np.linspace(0.0, 1.0, int(n_exact) + 1)[1:] ** 2
-    anchors = [fastest] + least_jerk_front(problem, fastest, caps, line=line)
+    caps = fastest.F[0] + (t_max - fastest.F[0]) * np.linspace(0.0, 1.0, n_exact + 1)[1:] ** 2
+    anchors = [fastest] + least_jerk_front(problem, fastest, caps, line=line, on_cap=bar.update)
+    bar.set_postfix_str(f"refining {n_points} caps")
     TA = np.array([a.F[0] for a in anchors])
     XA = np.array([a.x for a in anchors])
-    targets = np.linspace(fastest.F[0], t_max, int(n_points))
+    targets = np.linspace(fastest.F[0], t_max, n_points)
     k = np.clip(np.searchsorted(TA, targets, side="right") - 1, 0, len(TA) - 1)
     X = XA[k].copy()
     X[:, :n] *= (targets / TA[k])[:, None]
     X = np.clip(X, problem.lower, problem.upper)
     xb, _, _, found, _ = polish(problem, X, targets, steps=steps, learning_rate=learning_rate, penalty=penalty,
                                 margin=margin, rows=rows)
+    bar.update()
     Xf = np.concatenate([XA, xb[found]])
     Ff, Gf = problem.evaluate(Xf, rows=rows)  # the kernel's word
     feas = np.all(Gf <= 0, 1)
@@ -123,13 +139,14 @@ def fronts_cache() -> Path:
 
 
 def best_known_cached(problem: DockingProblem, path=None, log: Callable[[str], None] = print,
-                      **settings) -> FrontResult:
+                      progress: bool = False, **settings) -> FrontResult:
     """:func:`best_known_front` of ``problem`` (settings default to
     :data:`dockjax.config.BEST_KNOWN`), reused from ``path`` (an ``.npz``; a folder such as
     :func:`fronts_cache`: a file named by the key's hash inside it) when that file was
     written for the same problem and settings (:func:`best_known_key`), else computed —
-    with a line to ``log`` before it starts, as it takes a while — and written there
-    atomically. ``path`` None: computed, not stored."""
+    with a line to ``log`` before it starts, as it takes a while, and with ``progress`` a
+    bar on stderr while it runs — and written there atomically. ``path`` None: computed,
+    not stored."""
     key = best_known_key(problem, **settings)
     if path is not None and Path(path).is_dir():
         path = Path(path) / f"best-known-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
@@ -144,7 +161,7 @@ def best_known_cached(problem: DockingProblem, path=None, log: Callable[[str], N
     options = {**config.BEST_KNOWN, **settings}
     log(f"best-known front: computing ({options['n_exact']} SQP anchors, {options['n_points']} refined time caps; "
         "about a minute, once per problem)")
-    front = best_known_front(problem, **options)
+    front = best_known_front(problem, **options, progress=progress)
     log(f"best-known front: {len(front.F)} points in {front.seconds:.1f} s (compile included)")
     if path is not None:
         atomic_savez(path, {"X": front.X, "F": front.F, "G": front.G, "targets": front.targets,

@@ -31,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -561,13 +562,15 @@ def least_jerk(problem: DockingProblem, cap: float, starts, *, restarts: int = 0
 
 
 def least_jerk_front(problem: DockingProblem, shortest: Solution, caps, *, line: bool = True,
-                     tol: float = 1e-12, max_iter: int = 200, restarts: int = RESTARTS) -> list[Solution]:
+                     tol: float = 1e-12, max_iter: int = 200, restarts: int = RESTARTS,
+                     on_cap: Callable[[], None] | None = None) -> list[Solution]:
     """The least-jerk trajectory at each time cap (sorted ascending, all above the shortest
     time), by continuation: :func:`min_jerk` from the previous cap's answer slowed to the
     new cap (feasible, by exact time scaling), and with ``line`` also from the straight
     line with equal intervals (:func:`least_jerk`), keeping the lower jerk. Caps where no
     certified trajectory is found are skipped. ``max_iter`` and ``restarts`` bound each
-    continuation solve (a coarse front for a choice need not converge fully)."""
+    continuation solve (a coarse front for a choice need not converge fully). ``on_cap``
+    is called after each cap (for a progress display)."""
     out, prev = [], shortest
     for cap in np.sort(np.asarray(caps, np.float64)):
         start = time_scale(problem, prev.x, cap / prev.F[0])
@@ -580,6 +583,8 @@ def least_jerk_front(problem: DockingProblem, shortest: Solution, caps, *, line:
         if best is not None:
             out.append(best)
             prev = best
+        if on_cap is not None:
+            on_cap()
     return out
 
 

@@ -26,8 +26,9 @@ __all__ = ["fixed_reference"]
 
 
 def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backend,
-                    log: Callable[[str], None]) -> dict:
-    """``out/reference.npz``, made now if it does not exist yet (then reused unchanged)."""
+                    log: Callable[[str], None], progress: bool = False) -> dict:
+    """``out/reference.npz``, made now if it does not exist yet (then reused unchanged);
+    ``progress``: a bar on stderr while a best-known front is computed."""
     path = out / "reference.npz"
     if path.exists():
         try:
@@ -50,7 +51,8 @@ def fixed_reference(out: Path, cfg: SweepConfig, front: np.ndarray | None, backe
         settings = {k: cfg.reference[k] for k in config.BEST_KNOWN}
         # with memetic settings, the front's polishing shares their compiled shape
         rows = refine_rows(cfg) if any(s.refine_steps for s in cfg.settings) else None
-        best = best_known_cached(problem_of(cfg.preset, cfg.n_control), cache, log=log, rows=rows, **settings)
+        best = best_known_cached(problem_of(cfg.preset, cfg.n_control), cache, log=log, progress=progress, rows=rows,
+                                 **settings)
         front, idx = nondominated_points(best.F, return_index=True)
         extra["X"] = best.X[idx]
     elif kind == "pilot":

@@ -203,7 +203,7 @@ def _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress,
                     stale.unlink(missing_ok=True)
         kind = f"race over {cfg.seeds} seeds (min {cfg.race['min_seeds']})" if cfg.race else f"{cfg.seeds} seeds"
         log(f"sweep: {', '.join(cfg.algorithms)}; {len(cfg.settings)} settings, {kind}, {cfg.n_runs()} runs at most")
-        ref = fixed_reference(out, cfg, front, be, log)
+        ref = fixed_reference(out, cfg, front, be, log, progress)
         reference = {k: ref[k] for k in ("front", "ideal", "nadir", "hv_ref")}
         alive = np.ones(len(cfg.settings), bool)
         scores = np.full((len(cfg.settings), cfg.seeds), np.nan)  # HV of the plan's finished runs
