@@ -24,8 +24,9 @@ MODULES = ("algorithms", "best_known", "bspline", "checks", "cli", "config", "de
 """The public modules, each an attribute of the package."""
 
 NAMES = {"Result": "optimize", "Plan": "plan", "Planner": "plan", "PlanError": "solve", "Trajectory": "trajectory",
-         "FrontResult": "best_known", "AxisModel": "track", "ALGORITHMS": "algorithms"}
-"""Classes and tables of the package namespace, by the module that defines them."""
+         "FrontResult": "best_known", "AxisModel": "track", "ALGORITHMS": "algorithms",
+         "enable_compilation_cache": "runtime"}
+"""Classes, tables and functions of the package namespace, by the module that defines them."""
 
 __all__ = ["DockingProblem", "__version__", *NAMES, *MODULES]
 

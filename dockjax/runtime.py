@@ -1,6 +1,8 @@
 """The process-wide settings a command line makes before its first JAX computation: the
-persistent compilation cache and the number of CPU devices. The library never calls these
-itself; the CLIs and the benchmarks do.
+persistent compilation cache and the number of CPU devices. The library's computations
+never call these by themselves (JAX's configuration belongs to the application); the CLIs
+and the benchmarks do, and a Python program opts in with one call of
+:func:`enable_compilation_cache` (also ``dockjax.enable_compilation_cache``).
 """
 
 from __future__ import annotations
@@ -17,17 +19,35 @@ __all__ = ["enable_compilation_cache", "usable_cores", "use_cpu_devices", "claim
            "check_memory"]
 
 
-def enable_compilation_cache() -> None:
-    """Use JAX's persistent compilation cache in ``$DOCKJAX_CACHE`` or
-    ``~/.cache/dockjax/jax``, so that a second run of the same shapes skips compilation
-    (a read-only home runs without it)."""
-    path = Path(os.environ.get("DOCKJAX_CACHE", Path.home() / ".cache" / "dockjax" / "jax"))
+CACHE_OFF = ("off", "0", "none", "")
+"""Values of ``$DOCKJAX_CACHE`` that turn the persistent compilation cache off."""
+
+
+def enable_compilation_cache(path: str | os.PathLike | None = None) -> Path | None:
+    """Use JAX's persistent compilation cache, so that a new process reuses the programs an
+    earlier one compiled (a first :func:`dockjax.plan.plan` in a new process then costs a
+    few seconds of tracing and loading instead of about 40 s of compilation).
+
+    The folder: ``path``, else ``$DOCKJAX_CACHE``, else ``~/.cache/dockjax/jax``; every
+    program is kept, however quick its compilation. A cache the application configured
+    itself (``jax_compilation_cache_dir``) is left as it is, unless ``path`` is given;
+    ``$DOCKJAX_CACHE=off`` (or ``0``, ``none``, empty) turns it off, as does a folder that
+    cannot be made (a read-only home). Returns the folder in use, or None."""
+    configured = jax.config.jax_compilation_cache_dir
+    if path is None:
+        if configured:
+            return Path(configured)
+        path = os.environ.get("DOCKJAX_CACHE", str(Path.home() / ".cache" / "dockjax" / "jax"))
+        if path.strip().lower() in CACHE_OFF:
+            return None
+    folder = Path(path).expanduser()
     try:
-        path.mkdir(parents=True, exist_ok=True)
-        jax.config.update("jax_compilation_cache_dir", str(path))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+        folder.mkdir(parents=True, exist_ok=True)
     except OSError:
-        pass
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(folder))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    return folder
 
 
 def usable_cores() -> int:
