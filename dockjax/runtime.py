@@ -26,11 +26,12 @@ CACHE_OFF = ("off", "0", "none", "")
 def enable_compilation_cache(path: str | os.PathLike | None = None) -> Path | None:
     """Use JAX's persistent compilation cache, so that a new process reuses the programs an
     earlier one compiled (a first :func:`dockjax.plan.plan` in a new process then costs a
-    few seconds of tracing and loading instead of about 40 s of compilation).
+    few seconds of tracing and loading instead of 20–40 s of compilation).
 
     The folder: ``path``, else ``$DOCKJAX_CACHE``, else ``~/.cache/dockjax/jax``; every
     program is kept, however quick its compilation. A cache the application configured
-    itself (``jax_compilation_cache_dir``) is left as it is, unless ``path`` is given;
+    itself (``jax_compilation_cache_dir``, also set by JAX's ``JAX_COMPILATION_CACHE_DIR``)
+    is left as it is, with its own settings, unless ``path`` is given; otherwise
     ``$DOCKJAX_CACHE=off`` (or ``0``, ``none``, empty) turns it off, as does a folder that
     cannot be made (a read-only home). Returns the folder in use, or None."""
     configured = jax.config.jax_compilation_cache_dir

@@ -86,7 +86,7 @@ velocity mm/s)."""
 
 PAPER_JOINTS: dict[str, int] = {"x": 2, "z": 0}
 """The joint each move drives (index in the joint order): X → the lateral joint ``d_L3 = −x``,
-Z → the axial joint ``d_L1 = −z`` (:func:`dockjax.kinematics.arm_joints`). The right arm's
+Z → the axial joint ``d_L1 = −z`` (:func:`dockjax.robot.arm_joints`). The right arm's
 ``d_R3 = −(x + D_2 u_x)`` and ``d_R1 = z + D_2 u_z`` move by the same amounts (the cabin axis
 does not turn)."""
 

@@ -133,8 +133,9 @@ def test_the_robot_geometry_lives_in_one_module():
     """Which joints form an arm, which depend on the attitude and where the attitude sits in a
     pose are named once, in ``dockjax/robot.py`` (``LEFT_ARM``, ``RIGHT_ARM``,
     ``ATTITUDE_JOINTS``, ``POSE_ATTITUDE``), beside the one pose → joints map: no other module
-    writes a constant index range (``x[4:7]``, ``slice(0, 4)``), and the kernel takes the map
-    from the robot, not from the kinematics module."""
+    writes a range of more than one index with both ends constant (``x[4:7]``,
+    ``slice(0, 4)``; a prefix such as the pose's position ``pose[..., :3]`` is not a joint
+    group), and the kernel takes the map from the robot, not from the kinematics module."""
     edges, _ = _graph()
     found = []
     for path in sorted(PACKAGE.rglob("*.py")):

@@ -86,11 +86,22 @@ def test_refine_raises_hypervolume_of_short_imocs_run(problem, imocs_front, refi
     assert _hv(refined.F) > hv_in
 
 
-def test_best_known_front_is_feasible_and_beats_short_imocs(problem, imocs_front, capfd):
+def test_best_known_front_is_feasible_and_beats_short_imocs(problem, imocs_front, capfd, monkeypatch):
+    from dockjax import best_known
+
+    closed = []
+
+    class Bar(best_known.tqdm):  # records the count each bar reached when it closed
+        def close(self):
+            closed.append((self.n, self.total))
+            super().close()
+
+    monkeypatch.setattr(best_known, "tqdm", Bar)
     front = best_known_front(problem, n_points=6, n_exact=3, steps=STEPS, progress=True)
     # its progress: the shortest time, 3 anchors and the polishing batch, on stderr
     err = capfd.readouterr().err
     assert "best-known front" in err and "1/5" in err and "SQP anchors" in err, err[-500:]
+    assert set(closed) == {(5, 5)}  # (tqdm may close a bar twice: at exit and when collected)
     assert len(front.F) >= 3
     F, G = problem.evaluate(front.X)
     np.testing.assert_allclose(F, front.F, rtol=1e-12)

@@ -45,8 +45,10 @@ def test_the_folder_is_the_environments_or_the_home_cache(config, monkeypatch, t
     assert dockjax.enable_compilation_cache() == tmp_path / "home" / ".cache" / "dockjax" / "jax"
 
 
-def test_an_applications_own_cache_is_kept_unless_a_folder_is_given(config, tmp_path):
+def test_an_applications_own_cache_is_kept_unless_a_folder_is_given(config, monkeypatch, tmp_path):
     config.jax_compilation_cache_dir = str(tmp_path / "app")
+    assert dockjax.enable_compilation_cache() == tmp_path / "app" and config.updates == {}
+    monkeypatch.setenv("DOCKJAX_CACHE", "off")  # the application's choice wins over dockjax's variable
     assert dockjax.enable_compilation_cache() == tmp_path / "app" and config.updates == {}
     assert dockjax.enable_compilation_cache(tmp_path / "mine") == tmp_path / "mine"
     assert config.jax_compilation_cache_dir == str(tmp_path / "mine")

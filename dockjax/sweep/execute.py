@@ -10,6 +10,7 @@ import time
 from functools import lru_cache
 from typing import Any, Callable, Iterator
 
+import jax
 import numpy as np
 
 from .. import config, metrics
@@ -113,7 +114,9 @@ class DaskBackend:
                                         dashboard_address=None, silence_logs=logging.ERROR)
             self.client = Client(self.cluster)
             if processes:
-                self.client.run(enable_compilation_cache)
+                cache = jax.config.jax_compilation_cache_dir
+                if cache:  # the workers use this process's compilation cache, if it has one
+                    self.client.run(enable_compilation_cache, cache)
                 # Ctrl-C is the client's to handle (it closes the cluster): the workers, in its
                 # process group, would each print a traceback
                 self.client.run(_ignore_interrupts)
