@@ -421,6 +421,8 @@ class PlanArgs:
     devices: int | None = None
     """CPU devices the work is shared over (for an optimiser the results may differ by the count, as for
     compare). Default: one per usable core for an optimiser, one for --method direct."""
+    progress: bool = True
+    """Show the step under way on stderr, when it is a terminal (a plan of many control points takes minutes)."""
 
 
 PLAN_OPTIONS = {"weights": "--weights", "rate": "--rate", "method": "--method", "pop_size": "--pop",
@@ -497,7 +499,8 @@ def plan(args: PlanArgs) -> int:
     with _holding(args.out, "plan") as files:
         p, code = _make_plan(problem, weights, args.rate, method=args.method, pop_size=args.pop, n_iter=args.iters,
                              seed=args.seed, refine_steps=args.refine_steps, n_front=args.n_front,
-                             check_sensitivities=args.explain, duration=args.duration)
+                             check_sensitivities=args.explain, duration=args.duration,
+                             progress=args.progress and sys.stderr.isatty())
         if p is None:
             return code
         files += write_plan(p, args.out)

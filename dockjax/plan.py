@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from . import checks, config, plots, robot, select, solve
 from .algorithms import ALGORITHMS
@@ -196,12 +198,14 @@ def _caps(t_min: float, t_max: float, n: int) -> np.ndarray:
     return np.geomspace(t_min, t_max, n + 1)[1:] if t_max > t_min * (1 + 1e-9) else np.zeros(0)
 
 
-def _direct_front(problem: DockingProblem, n_front: int, shortest=None):
+def _direct_front(problem: DockingProblem, n_front: int, shortest=None, on_cap=None):
     """``(shortest, [least-jerk solutions at n_front caps up to the longest T])``, the front
-    by continuation from the shortest-time solution (one SQP solve per cap)."""
+    by continuation from the shortest-time solution (one SQP solve per cap; ``on_cap`` is
+    called after each)."""
     shortest = _shortest(problem) if shortest is None else shortest
     caps = _caps(shortest.F[0], problem.n_intervals * problem.interval_bounds[1], n_front)
-    return shortest, solve.least_jerk_front(problem, shortest, caps, line=False, max_iter=FRONT_ITER, restarts=0)
+    return shortest, solve.least_jerk_front(problem, shortest, caps, line=False, max_iter=FRONT_ITER, restarts=0,
+                                            on_cap=on_cap)
 
 
 def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
@@ -348,7 +352,7 @@ def check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n
 def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: float = config.RATE,
          method: str = "direct", pop_size: int = config.POP_SIZE, n_iter: int = config.N_ITER, seed: int = 0,
          refine_steps: int = config.PLAN_REFINE_STEPS, n_front: int = config.PLAN_FRONT,
-         check_sensitivities: bool = True, duration: float | None = None) -> Plan:
+         check_sensitivities: bool = True, duration: float | None = None, progress: bool = False) -> Plan:
     """Plan one certified trajectory for ``problem`` and explain it.
 
     ``method="direct"`` (default): the shortest time by SQP (:func:`dockjax.solve.min_time`),
@@ -367,6 +371,10 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     ValueError); below the shortest feasible time, :class:`PlanError` names the limit that
     binds the shortest-time trajectory and that time.
 
+    ``progress``: a bar on stderr naming the step under way (the shortest time, each cap of
+    the front, the chosen point's solve, the certificate, the sensitivities' check) and
+    counting the steps done; a plan of many control points takes minutes.
+
     Raises ValueError on bad input (before any work) and :class:`PlanError` when no
     trajectory meets the limits.
     """
@@ -376,8 +384,18 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     w, rate = check_options(weights, rate, method, pop_size, n_iter, seed, refine_steps, n_front)
     check_move(problem)
     d = check_duration(problem, duration)
+    with tqdm(desc="plan", unit="step", disable=not progress, file=sys.stderr, leave=False) as bar:
+        return _plan(problem, w, rate, method, pop_size, n_iter, seed, refine_steps, n_front, check_sensitivities, d,
+                     bar)
+
+
+def _plan(problem, w, rate, method, pop_size, n_iter, seed, refine_steps, n_front, check_sensitivities, d,
+          bar) -> Plan:
+    """:func:`plan` after its checks; ``bar`` (a tqdm bar) names each step under way and counts it."""
     time_only = w[1] == 0
+    bar.set_postfix_str("shortest time")
     shortest = _shortest(problem)
+    bar.update()
     if d is not None and d < shortest.F[0]:
         raise _too_short(problem, shortest, d)
     if method == "direct" and d is not None and _finer(problem):
@@ -385,18 +403,25 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
         # continuation of _of_duration); a front would only add the dearest solves
         sols, front_F, chosen = [shortest], shortest.F[None], shortest
     elif method == "direct":
-        _, front = _direct_front(problem, n_front, shortest)
+        bar.set_postfix_str(f"least jerk at {n_front} time caps")
+        _, front = _direct_front(problem, n_front, shortest, on_cap=bar.update)
         sols = [shortest] + front
         front_F = np.array([s.F for s in sols])
         chosen = shortest if time_only or d is not None else sols[select.choose(front_F, w)]
         if chosen is not shortest:  # the chosen cap solved once more, from the straight line too
+            bar.set_postfix_str("the chosen point's least jerk")
             chosen = solve.least_jerk(problem, float(chosen.F[0]), [chosen.x]) or chosen
+            bar.update()
     else:
+        bar.set_postfix_str(f"{method}, {n_iter} iterations")
         X, F = _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps)
+        bar.update()
         chosen = shortest
         if not time_only and d is None:
             j = select.choose(F, w)
+            bar.set_postfix_str("the chosen point's least jerk")
             chosen = solve.least_jerk(problem, float(F[j, 0]), [X[j]])
+            bar.update()
             if chosen is None:
                 raise PlanError(f"the least-jerk solve at T = {F[j, 0]:.6g} s found no certified trajectory")
         front_F = np.concatenate([F, chosen.F[None], shortest.F[None]])
@@ -404,10 +429,16 @@ def plan(problem: DockingProblem | None = None, *, weights=(1.0, 1.0), rate: flo
     if d is not None:
         found = [shortest.x] + ([s.x for s in sols[1:]] if method == "direct" else list(X))
         T_found = np.array([shortest.F[0]] + ([s.F[0] for s in sols[1:]] if method == "direct" else list(F[:, 0])))
+        bar.set_postfix_str(f"least jerk at {d:g} s")
         chosen, time_only = _of_duration(problem, d, shortest, found, T_found)
+        bar.update()
         front_F = np.concatenate([np.asarray(front_F, np.float64), chosen.F[None]])
+    bar.set_postfix_str("certifying")
     samples = _certify(problem, chosen.x, rate)
+    bar.update()
+    bar.set_postfix_str("checking the sensitivities" if check_sensitivities else "explaining")
     why = explain(problem, chosen, samples, time_optimal=time_only, check=check_sensitivities)
+    bar.update()
     settings = {"weights": list(map(float, w)), "rate": rate, "method": method, "n_front": n_front,
                 "shortest_T_s": float(shortest.F[0])}
     if d is not None:

@@ -233,3 +233,23 @@ def test_track_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, args, need
     assert code == 2, (code, err)
     assert needle in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_plan_shows_each_step_when_asked(capfd, monkeypatch):
+    """``plan(progress=True)``: a bar on stderr naming the step under way, counting the
+    shortest time, each of the front's caps, the certificate and the explanation."""
+    from dockjax import plan as plan_module
+
+    closed = []
+
+    class Bar(plan_module.tqdm):  # records the count each bar reached when it closed
+        def close(self):
+            closed.append(self.n)
+            super().close()
+
+    monkeypatch.setattr(plan_module, "tqdm", Bar)
+    p = plan_module.plan(weights=(1, 0), n_front=2, rate=50, check_sensitivities=False, progress=True)
+    err = capfd.readouterr().err
+    assert p.T > 0 and set(closed) == {5}, closed  # shortest time, 2 caps, certificate, explanation
+    for step in ("shortest time", "least jerk at 2 time caps", "certifying"):
+        assert step in err, err[-800:]
