@@ -177,6 +177,23 @@ def _values(problem, u, scale, time_weight):
     return fv, fg, gv, gj
 
 
+@jax.jit
+def _primal_values(problem, u, scale, time_weight):
+    """:func:`_values` without the constraints' Jacobian: the objective, its gradient and the
+    constraints. For a large family the Jacobian is most of :func:`_values`'s cost (at 32
+    free control points about 20 times the rest), and SLSQP's line search asks for values
+    alone; the objective and its gradient are bit for bit :func:`_values`'s, the
+    constraints equal to rounding."""
+
+    def f(u):
+        x = _x_of(problem, u)
+        return (time_weight * jnp.sum(x[: problem.n_intervals]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
+
+    x = _x_of(problem, u)
+    fv, fg = jax.value_and_grad(f)(u)
+    return fv, fg, candidate_limits(problem, x, times=critical_times(problem, x)).reshape(-1)
+
+
 def _scores(problem, x):
     """The kernel's F (2,) and G (24,) of one x, every span through the root chain."""
     with jax.enable_x64(True):
@@ -292,16 +309,31 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
     top[:n] -= room
     u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, top)
     n_candidates = n * config.N_JOINTS * critical_values(problem)
-    cache = {}
+    # a large programme takes its values and the constraints' Jacobian from two programmes
+    # (the line search asks for values alone); the paper's family takes all four from one
+    split = n_candidates > DENSE_CONSTRAINTS
+    cache, jac_cache = {}, {}
 
     def values(u):
         key = u.tobytes()
         if key not in cache:
             cache.clear()
             with jax.enable_x64(True):
-                out = _values(problem, u, np.float64(scale), np.float64(kind == "time"))
+                out = (_primal_values if split else _values)(problem, u, np.float64(scale), np.float64(kind == "time"))
             cache[key] = tuple(np.asarray(a, np.float64) for a in out)
-        return cache[key]
+        return cache[key] if split else cache[key][:3]
+
+    def jacobian(u):
+        if not split:
+            values(u)
+            return cache[u.tobytes()][3]
+        key = u.tobytes()
+        if key not in jac_cache:
+            jac_cache.clear()
+            with jax.enable_x64(True):
+                jac_cache[key] = np.asarray(_values(problem, u, np.float64(scale), np.float64(kind == "time"))[3],
+                                            np.float64)
+        return jac_cache[key]
 
     # a large programme keeps only its near-active limit constraints (the dense QP of each SQP
     # step costs in proportion to the constraints): those above -NEAR_ACTIVE at the start,
@@ -310,10 +342,10 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
     nit = 0
     for _ in range(ACTIVE_ROUNDS if keep is not None else 1):
         if keep is None:
-            cons = [{"type": "ineq", "fun": lambda u: -values(u)[2], "jac": lambda u: -values(u)[3]}]
+            cons = [{"type": "ineq", "fun": lambda u: -values(u)[2], "jac": lambda u: -jacobian(u)}]
         else:
             cons = [{"type": "ineq", "fun": lambda u, k=keep: -values(u)[2][k],
-                     "jac": lambda u, k=keep: -values(u)[3][k]}]
+                     "jac": lambda u, k=keep: -jacobian(u)[k]}]
         if cap is not None:
             wh = width[:n]
             b = max(cap * (1.0 - 1e-12) - lo[:n].sum(), 0.0)  # a hair inside, never below the box
@@ -350,7 +382,10 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
 
 DENSE_CONSTRAINTS = 720
 """Most limit constraints an SQP step takes all at once (the paper's family has 720); larger
-programmes keep their near-active ones (:data:`NEAR_ACTIVE`)."""
+programmes keep their near-active ones (:data:`NEAR_ACTIVE`), and take their values
+(:func:`_primal_values`) and the constraints' Jacobian (:func:`_values`) from two compiled
+programmes, as SLSQP's line search asks for values about seven times as often as for the
+Jacobian."""
 NEAR_ACTIVE = 0.75
 """A limit constraint ``(q/L)² − (1 − r/L)²`` of a large programme is kept when above
 ``−NEAR_ACTIVE`` (the value above about half its limit); a solve is repeated, with the

@@ -229,3 +229,32 @@ def test_a_trajectory_carried_to_a_finer_family_keeps_its_scores():
     _reference_check(fine, y[None], F2, G2)  # the right arm's: certified bounds in both
     _reference_check(coarse, x[None], F1, G1)
     assert refine_family(coarse, fine, y) is None  # no family with fewer points
+
+
+def test_a_large_programme_takes_its_values_without_the_jacobian_and_solves_alike(monkeypatch):
+    """A programme with more candidate constraints than ``solve.DENSE_CONSTRAINTS`` asks for
+    values (objective, gradient, constraints) and the constraints' Jacobian from two compiled
+    programmes. The values are the one-programme values (objective and gradient bit for bit,
+    constraints to rounding), and the two-programme path, forced here on a small family,
+    reaches a certified shortest time within 1e-6 of the one-programme path's."""
+    import jax
+
+    from dockjax import solve
+
+    p = DockingProblem(n_control=2, interval_bounds=(1.0, 10.0))
+    u = np.random.default_rng(0).uniform(0.0, 1.0, p.n_var)
+    with jax.enable_x64(True):
+        f, fg, g = (np.asarray(a) for a in solve._primal_values(p, u, 10.0, 0.5))
+        F, FG, G, _ = (np.asarray(a) for a in solve._values(p, u, 10.0, 0.5))
+    assert f == F and np.array_equal(fg, FG)
+    np.testing.assert_allclose(g, G, rtol=1e-12, atol=1e-12)
+
+    x0 = solve.straight_line(p, [30.0])[0]
+    one = solve.min_time(p, x0)
+    monkeypatch.setattr(solve, "DENSE_CONSTRAINTS", 0)
+    two = solve.min_time(p, x0)
+    _, feasible = R.dense_check(p, two.x[None], n_samples=20001)
+    assert feasible.all()
+    T_ref, _ = R.reference_objectives(two.x, p.start, p.goal, p.arm_distance)
+    assert two.F[0] == pytest.approx(T_ref, rel=1e-9)
+    assert two.F[0] == pytest.approx(one.F[0], rel=1e-6)
