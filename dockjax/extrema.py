@@ -87,11 +87,14 @@ CERTIFICATE = 1e-7
 def bracketed_root(c, dc, lo, hi, steps: int | None = None):
     """Root of a polynomial monotone on ``[lo, hi]`` by safeguarded Newton (rtsafe).
 
-    c: (..., n) coefficients, dc their derivative; lo, hi: (...). Returns ``(x, width)``:
-    the root lies within ``width`` of x (a certificate: the sign of the polynomial is
-    checked on both sides of x, else the whole remaining bracket is the width). Where the
+    c: (..., n) coefficients, dc their derivative; lo, hi: (...). Returns ``(x, width,
+    slope)``: the root lies within ``width`` of x (a certificate: the sign of the polynomial
+    is checked on both sides of x, else the whole remaining bracket is the width). Where the
     polynomial does not change sign on the bracket there is no root: the end with the
     smaller ``|value|`` is returned with width 0 (any point of the bracket is harmless).
+    ``slope``: where the sign check failed, the largest ``|c|`` on the remaining bracket
+    (its ends' values: c is monotone there), which holds both x and the root; elsewhere the
+    largest finite number (no bound).
     """
     flo, fhi = poly_eval(c, lo), poly_eval(c, hi)
     # A root at (or within rounding of) an end needs no search: the ends are examined
@@ -133,14 +136,17 @@ def bracketed_root(c, dc, lo, hi, steps: int | None = None):
     right = jnp.clip(x + eps, lo, hi)
     tight = poly_eval(c, left) * poly_eval(c, right) <= 0.0
     width = jnp.where(tight, right - left, jnp.abs(b - a))
+    slope = jnp.where(change & ~tight, jnp.maximum(jnp.abs(poly_eval(c, a)), jnp.abs(poly_eval(c, b))),
+                      jnp.finfo(c.dtype).max)
     fallback = jnp.where(jnp.abs(flo) <= jnp.abs(fhi), lo, hi)
-    return jnp.where(change, x, fallback), jnp.where(change, width, 0.0)
+    return jnp.where(change, x, fallback), jnp.where(change, width, 0.0), slope
 
 
 def roots_in_brackets(c, edges):
     """Roots of c, one per bracket ``[edges[i], edges[i+1]]`` on which c is monotone.
 
-    c: (..., n); edges: (..., k+1) sorted → roots (..., k) and their certified widths.
+    c: (..., n); edges: (..., k+1) sorted → roots (..., k), their certified widths and
+    slopes (:func:`bracketed_root`).
     """
     dc = poly_derivative(c)
     lo, hi = edges[..., :-1], edges[..., 1:]
@@ -148,17 +154,21 @@ def roots_in_brackets(c, edges):
 
 
 def _rate_chain(c, h):
-    """The first two links of the chain: ``(jerk roots, (acceleration roots, widths))``
-    of a quintic's series c (..., 6) on ``[0, h]``, as the ends plus interior roots."""
+    """The first two links of the chain: ``(jerk roots, (acceleration roots, widths),
+    slopes)`` of a quintic's series c (..., 6) on ``[0, h]``, as the ends plus interior
+    roots; ``slopes`` (..., 5) bound ``|Q''|`` between each acceleration root and its
+    estimate where the root's sign check failed (:func:`bracketed_root`; else, and at the
+    ends, the largest finite number)."""
     zero = jnp.zeros_like(h)
     a = poly_derivative(c, 2)
     j = poly_derivative(a)
     jr = quadratic_roots(j, zero, h)  # (..., 2)
     ends_lo, ends_hi = zero[..., None], h[..., None]
     a_edges = jnp.concatenate([ends_lo, jr, ends_hi], axis=-1)  # (..., 4)
-    ar, aw = roots_in_brackets(a, a_edges)  # (..., 3), ordered
+    ar, aw, slope = roots_in_brackets(a, a_edges)  # (..., 3), ordered
     v_edges = jnp.concatenate([ends_lo, ar, ends_hi], axis=-1)  # (..., 5)
-    return a_edges, (v_edges, aw)
+    big = jnp.full_like(ends_lo, jnp.finfo(c.dtype).max)
+    return a_edges, (v_edges, aw), jnp.concatenate([big, slope, big], axis=-1)
 
 
 def chain_extrema(c, h):
@@ -170,6 +180,11 @@ def chain_extrema(c, h):
     derivative respectively (the last in closed form), each root within its width of the
     true one.
     """
+    return _chain(c, h)[0]
+
+
+def _chain(c, h):
+    """:func:`chain_extrema` and the slopes of :func:`_rate_chain`."""
     # The critical times carry no gradient (envelope theorem: at an interior root of Q' the
     # derivative of Q(τ*) with respect to the coefficients is ∂Q/∂c at τ*). So the root
     # searches run on constants: the backward pass never enters the Newton loops (cheaper,
@@ -177,8 +192,8 @@ def chain_extrema(c, h):
     # gradient (the end of a span moves with h).
     h_in = h
     c, h = jax.lax.stop_gradient(c), jax.lax.stop_gradient(h)
-    a_edges, (v_edges, aw) = _rate_chain(c, h)
-    vr, vw = roots_in_brackets(poly_derivative(c), v_edges)  # (..., 4)
+    a_edges, (v_edges, aw), slope = _rate_chain(c, h)
+    vr, vw, _ = roots_in_brackets(poly_derivative(c), v_edges)  # (..., 4)
     ends_lo, ends_hi = v_edges[..., :1], v_edges[..., -1:]
     t_edges = jnp.concatenate([ends_lo, vr, ends_hi], axis=-1)  # (..., 6)
     pad = jnp.zeros_like(ends_lo)
@@ -187,7 +202,7 @@ def chain_extrema(c, h):
         (end(t_edges), jnp.concatenate([pad, vw, pad], -1)),
         (end(v_edges), jnp.concatenate([pad, aw, pad], -1)),
         end(a_edges),
-    )
+    ), slope
 
 
 def _at(c, t):
@@ -216,14 +231,17 @@ def jerk_maxima(c, h):
     return _quadratic_max(poly_derivative(c, 3), h)
 
 
-def _rate_maxima(d, h, vt, vw, at):
+def _rate_maxima(d, h, vt, vw, at, slope):
     """max |Q'| and |Q''| from the critical times (see :func:`span_maxima`); d: the series
-    of Q and its first three derivatives."""
+    of Q and its first three derivatives. At a velocity critical time x within w of the
+    root, ``|Q'| <= |Q'(x)| + min(|Q''(x)| w + J w²/2, S w)``, J the jerk's maximum on the
+    span and S ``slope`` (:func:`_rate_chain`): where a root's sign check failed, as on a
+    plateau of the velocity (``Q''`` nearly zero over the bracket), S w is far the smaller."""
     amax = reduce_max(jnp.abs(_at(d[2], at)), -1)
     jmax = _quadratic_max(d[3], h)
-    vmax = reduce_max(
-        jnp.abs(_at(d[1], vt)) + jnp.abs(_at(d[2], vt)) * vw + 0.5 * jmax[..., None] * vw * vw, -1
-    )
+    v = jnp.abs(_at(d[1], vt))
+    second = v + jnp.abs(_at(d[2], vt)) * vw + 0.5 * jmax[..., None] * vw * vw
+    vmax = reduce_max(jnp.minimum(second, v + slope * vw), -1)
     return vmax, amax
 
 
@@ -233,12 +251,14 @@ def span_maxima(c, h):
     c: (..., 6), h: (...) → maxima (..., 3) and the critical times of :func:`chain_extrema`.
     At a root x of ``Q'`` certified within width w, ``|Q| <= |Q(x)| + |Q'(x)| w + M w²/2``
     with M the maximum of ``|Q''|`` on the span (exact: the acceleration's maximum for the
-    value, the jerk's for the velocity), so rounding or slow convergence can only overstate.
+    value, the jerk's for the velocity), so rounding or slow convergence can only overstate;
+    for the velocity, where a root's sign check failed, also ``|Q'(x)| + S w`` with S the
+    acceleration's largest ``|value|`` over the search's last bracket (:func:`_rate_maxima`).
     """
-    times = chain_extrema(c, h)
+    times, slope = _chain(c, h)
     (tt, tw), (vt, vw), at = times
     d = [c] + [poly_derivative(c, k) for k in range(1, 4)]
-    vmax, amax = _rate_maxima(d, h, vt, vw, at)
+    vmax, amax = _rate_maxima(d, h, vt, vw, at, slope)
     pmax = reduce_max(
         jnp.abs(_at(d[0], tt)) + jnp.abs(_at(d[1], tt)) * tw + 0.5 * amax[..., None] * tw * tw, -1
     )
@@ -251,11 +271,11 @@ def rate_maxima(c, h):
     c: (..., 6), h: (...) → (..., 2)."""
     h_in = h
     c, h = jax.lax.stop_gradient(c), jax.lax.stop_gradient(h)
-    a_edges, (v_edges, aw) = _rate_chain(c, h)
+    a_edges, (v_edges, aw), slope = _rate_chain(c, h)
     pad = jnp.zeros_like(h[..., None])
     end = lambda t: jnp.where(t == h[..., None], h_in[..., None], t)  # noqa: E731
     d = [c] + [poly_derivative(c, k) for k in range(1, 4)]
-    vmax, amax = _rate_maxima(d, h_in, end(v_edges), jnp.concatenate([pad, aw, pad], -1), end(a_edges))
+    vmax, amax = _rate_maxima(d, h_in, end(v_edges), jnp.concatenate([pad, aw, pad], -1), end(a_edges), slope)
     return jnp.stack([vmax, amax], -1)
 
 

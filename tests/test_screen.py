@@ -73,6 +73,23 @@ def test_span_bounds_bracket_numpy_maxima(c, h, scale):
     np.testing.assert_array_equal(rate, exact[1:])
 
 
+@pytest.mark.parametrize("t0, k, h", [(3.3, 0.002, 5.0), (0.37, 1.0, 1.0), (2.5, 0.005, 5.0)])
+def test_a_velocity_plateau_is_bounded_tightly(t0, k, h):
+    """Q' = 1 − k (t − t0)⁴: the acceleration has a triple root at t0, too flat for the root's
+    sign check, so the root search ends with a wide bracket. The velocity's maximum (1, at
+    t0) is never understated and, bounded by the acceleration over that bracket, overstated
+    by less than 1e-4 (the second-order bound alone gave 1 % on the first case)."""
+    q = np.polynomial.Polynomial([0.0, 1.0]) - k * np.polynomial.Polynomial([-t0, 1.0]) ** 5 / 5
+    c = np.zeros(6)
+    c[: len(q.coef)] = q.coef
+    with jax.enable_x64(True):
+        _, _, exact, rate = (np.asarray(a) for a in _all_bounds(jnp.asarray(c), jnp.asarray(h)))
+    ref = _numpy_maxima(c, h)
+    assert ref[1] == pytest.approx(1.0, abs=1e-12)  # at t0
+    assert ref[1] - 1e-12 <= exact[1] <= ref[1] * (1 + 1e-4), (exact[1], ref[1])
+    np.testing.assert_array_equal(rate, exact[1:])
+
+
 def test_span_bounds_tighten_with_the_grid():
     """U − L of the velocity shrinks like δ² (the gap term), so the sampled bounds are
     useful: at 16 sub-intervals the gap of a smooth quintic is a small fraction of it."""
