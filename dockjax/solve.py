@@ -154,6 +154,13 @@ def _x_of(problem, u):
     return lo + u * (problem.upper - lo)
 
 
+def _objective(u, problem, scale, time_weight):
+    """The programmes' objective ``(w T + (1 − w) jerk) / scale`` at unit-box coordinates u
+    (w = ``time_weight``, 1 or 0)."""
+    x = _x_of(problem, u)
+    return (time_weight * jnp.sum(x[: problem.n_intervals]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
+
+
 @jax.jit
 def _values(problem, u, scale, time_weight):
     """Objective ``(w T + (1 − w) jerk) / scale`` (w = ``time_weight``, 1 or 0: one compiled
@@ -161,16 +168,12 @@ def _values(problem, u, scale, time_weight):
     (n_intervals · 120,; 720 in the paper) and their Jacobian (·, d), in the unit-box
     coordinates u."""
 
-    def f(u):
-        x = _x_of(problem, u)
-        return (time_weight * jnp.sum(x[: problem.n_intervals]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
-
     times = critical_times(problem, _x_of(problem, u))  # held: the root searches are not differentiated
 
     def g(u):
         return candidate_limits(problem, _x_of(problem, u), times=times).reshape(-1)
 
-    fv, fg = jax.value_and_grad(f)(u)
+    fv, fg = jax.value_and_grad(_objective)(u, problem, scale, time_weight)
     # the Jacobian in forward mode, one tangent per coordinate, with the value computed once
     eye = jnp.eye(u.shape[0], dtype=u.dtype)
     gv, gj = jax.vmap(lambda d: jax.jvp(g, (u,), (d,)), out_axes=(None, 1))(eye)
@@ -185,12 +188,8 @@ def _primal_values(problem, u, scale, time_weight):
     alone; the objective and its gradient are bit for bit :func:`_values`'s, the
     constraints equal to rounding."""
 
-    def f(u):
-        x = _x_of(problem, u)
-        return (time_weight * jnp.sum(x[: problem.n_intervals]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
-
     x = _x_of(problem, u)
-    fv, fg = jax.value_and_grad(f)(u)
+    fv, fg = jax.value_and_grad(_objective)(u, problem, scale, time_weight)
     return fv, fg, candidate_limits(problem, x, times=critical_times(problem, x)).reshape(-1)
 
 
