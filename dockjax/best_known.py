@@ -32,7 +32,7 @@ from .io import DamagedFileError, atomic_savez, load_npz
 from .metrics import nondominated_points
 from .problem import DockingProblem
 from .refine import check_settings, polish
-from .solve import infeasibility, least_jerk_front, shortest, straight_line
+from .solve import floor_infeasibility, infeasibility, least_jerk_front, shortest, straight_line
 
 __all__ = ["FrontResult", "best_known_front", "best_known_key", "best_known_cached",
            "fronts_cache", "reference_point", "BEST_KNOWN_FORMAT"]
@@ -96,6 +96,8 @@ def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: i
 
 def _best_known_front(problem, n_points, n_exact, line, steps, learning_rate, penalty, margin, rows, bar, t0):
     n = problem.n_intervals
+    if (floor := floor_infeasibility(problem)) is not None:
+        raise floor
     bar.set_postfix_str("shortest time")
     fastest = shortest(problem, straight_line(problem, [n * problem.interval_bounds[0]])[0])
     if fastest is None:

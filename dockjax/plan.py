@@ -175,7 +175,10 @@ def _shortest(problem: DockingProblem, x0=None, *, smooth: bool = True) -> solve
     shortest-time trajectory of a coarser family (:func:`_coarser`: the paper's, or with
     jerk limits half as many points, recursively), written exactly in the finer family
     (:func:`dockjax.solve.refine_family`), so that the SQP starts at a feasible trajectory
-    near its optimum."""
+    near its optimum. A move that some joint cannot make within the longest T, whatever
+    the trajectory (:func:`dockjax.solve.floor_infeasibility`), fails at once."""
+    if (floor := solve.floor_infeasibility(problem)) is not None:
+        raise floor
     if x0 is None and problem.n_control > config.N_FREE and not problem.reduced:
         coarse = problem.with_n_control(_coarser(problem))
         try:

@@ -42,6 +42,7 @@ from . import config, extrema, robot
 from .bspline import insert_knots, poly_derivative, poly_eval, split_counts
 from .decoding import spans
 from .fusion import materialize
+from .kinematics import inverse_kinematics
 from .limits import joint_series
 from .objectives import jerk
 from .problem import DockingProblem
@@ -50,7 +51,7 @@ from .robot import ATTITUDE_JOINTS, by_kind
 
 __all__ = ["Solution", "PlanError", "candidate_limits", "critical_times", "straight_line", "least_jerk",
            "least_jerk_front", "kept_start", "map_to", "refine_family", "min_time", "min_jerk", "shortest",
-           "certify_scaling", "infeasibility",
+           "certify_scaling", "infeasibility", "floor_infeasibility", "time_floor",
            "scaling_need", "scaling_needs", "sensitivities", "time_scale", "critical_values"]
 
 
@@ -244,6 +245,57 @@ class PlanError(RuntimeError):
         joint, kind = robot.JOINTS[j].name, robot.LIMIT_KINDS[k].name
         return cls(message.replace("{limit}", f"{joint} {kind} ({limit:g} {unit})"), joint=joint, quantity=kind,
                    limit=limit, unit=unit, excess=excess)
+
+
+def _joint_moves(problem: DockingProblem) -> np.ndarray:
+    """(8,) |goal − start| of each joint (mm, °), in float64."""
+    with jax.enable_x64(True):
+        q0, q1 = (np.asarray(inverse_kinematics(np.asarray(p, np.float64), problem.arm_distance))
+                  for p in (problem.start, problem.goal))
+    return np.abs(q1 - q0)
+
+
+def _rate_limits(problem: DockingProblem) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity and acceleration limits (8,) each of the problem's limit table."""
+    kind = [k.name for k in robot.LIMIT_KINDS]
+    lim = np.asarray(problem.limits, np.float64)
+    return lim[:, kind.index("velocity")], lim[:, kind.index("acceleration")]
+
+
+def time_floor(problem: DockingProblem) -> np.ndarray:
+    """(8,) s: per joint, the least time in which any motion from rest at its start value to
+    rest at its goal value keeps |velocity| and |acceleration| within the problem's limits:
+    the bang-bang profile (full acceleration, cruise at the velocity limit, full braking),
+    ``d/v + v/a`` for a move ``d ≥ v²/a``, else the triangle ``2 √(d/a)``. Every trajectory
+    the kernel certifies, of any family, takes at least the largest of them: a certified
+    column bounds its quantity over the whole trajectory."""
+    d, (v, a) = _joint_moves(problem), _rate_limits(problem)
+    return np.where(d >= v * v / a, d / v + v / a, 2.0 * np.sqrt(d / a))
+
+
+def floor_infeasibility(problem: DockingProblem) -> PlanError | None:
+    """A :class:`PlanError` when some joint's :func:`time_floor` exceeds the longest T the
+    interval bounds allow (no trajectory can meet its limits: no solve needed), naming that
+    joint's velocity limit, or its acceleration limit when even an unlimited velocity would
+    not do (``4 d / T² > a``); ``excess``: the least peak of that quantity over its limit,
+    minus 1, at the longest T. None otherwise."""
+    floor = time_floor(problem)
+    T = problem.n_intervals * problem.interval_bounds[1]
+    j = int(np.argmax(floor))
+    if floor[j] <= T * (1.0 + 1e-9):
+        return None
+    d = float(_joint_moves(problem)[j])
+    v, a = (float(lim[j]) for lim in _rate_limits(problem))
+    kind = [k.name for k in robot.LIMIT_KINDS]
+    if 4.0 * d > a * T * T:  # even the triangle at full acceleration is too slow
+        k, excess = kind.index("acceleration"), 4.0 * d / (T * T) / a - 1.0
+    else:  # the least cruise velocity that covers d in T with full acceleration
+        k, excess = kind.index("velocity"), (a * T - math.sqrt(a * a * T * T - 4.0 * a * d)) / 2.0 / v - 1.0
+    name, unit = robot.JOINTS[j].name, robot.JOINTS[j].unit
+    return PlanError.of_column(
+        problem, j, k, f"no trajectory meets the limit {{limit}}: {name} moves {d:.6g} {unit}, which takes at "
+        f"least {floor[j]:.4g} s from rest to rest within {v:g} {unit}/s and {a:g} {unit}/s^2, beyond the longest "
+        f"T = {T:g} s the interval bounds {problem.interval_bounds} allow", excess=float(excess))
 
 
 def infeasibility(problem: DockingProblem) -> PlanError:

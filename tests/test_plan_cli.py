@@ -140,6 +140,20 @@ def test_a_plan_error_names_its_limit_as_data():
     e = info.value
     assert e.joint in ("d_L3", "d_R3") and e.quantity == "velocity" and e.limit == 0.4 and e.unit == "mm/s"
     assert e.excess > 0 and e.joint in str(e)
+    # within the floor (30 mm at 0.6 mm/s: 50 s) but not for the straight line slowed to the
+    # longest T, the diagnosis after a failed solve: the straight line's need, from a dense check
+    from dockjax.solve import infeasibility, straight_line
+
+    p = DockingProblem(velocity=[400, 25, 0.6, 6.8])
+    e = infeasibility(p)
+    x = straight_line(p, [60.0])[0]
+    g = R.dense_constraints(x, p.start, p.goal, p.arm_distance, *np.asarray(p.limits).T, n_samples=20001)
+    need = g.reshape(8, 3)[2, 1] + 1  # d_L3's velocity over its limit at T = 60 s
+    assert (e.joint, e.quantity, e.limit) == ("d_L3", "velocity", 0.6) and e.excess > 0
+    import re
+
+    stated = float(re.search(r"T >= ([\d.]+) s", str(e)).group(1))  # a certified (screened) need: never below
+    assert 60 * need * (1 - 1e-3) <= stated <= 60 * need * 1.01, (str(e), 60 * need)
 
 
 @pytest.mark.parametrize(

@@ -14,10 +14,13 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import minimize
 
 from dockjax import plan as P
 from dockjax import solve
+from dockjax.best_known import best_known_front
 from dockjax.plan import Planner, plan
 from dockjax.problem import DockingProblem, make_problem
 from dockjax.refine import refine
@@ -84,6 +87,74 @@ def test_shortest_time_is_above_the_floor_dense_feasible_and_no_worse_than_an_in
     assert T <= T_ref_feasible * (1 + 1e-3), (T, T_ref, T_ref_feasible)
     # and the printed peers' floor: 30 mm of lateral travel at 2.5 mm/s and 100 mm/s²
     assert _floor(WIDE) == pytest.approx(12.025, abs=1e-9)
+
+
+def _coverage_floor(d, v, a) -> float:
+    """The least T in which a rest-to-rest motion within |v|, |a| covers d, by bisection
+    on the farthest distance such a motion covers in T (v (T − v/a) once it reaches v,
+    else a T²/4): the bang-bang floor derived the other way round."""
+    reach = lambda T: v * (T - v / a) if T >= 2 * v / a else a * T * T / 4  # noqa: E731
+    lo, hi = 0.0, 1.0
+    while reach(hi) < d:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if reach(mid) < d else (lo, mid)
+    return hi
+
+
+FLOOR_CASES = st.fixed_dictionaries(dict(
+    velocity=st.lists(st.floats(0.05, 50.0), min_size=4, max_size=4),
+    acceleration=st.lists(st.floats(0.01, 100.0), min_size=4, max_size=4),
+    move=st.lists(st.floats(-40.0, 40.0), min_size=3, max_size=3),
+    attitude=st.lists(st.floats(-0.5, 0.5), min_size=2, max_size=2),
+    roll=st.floats(-5.0, 5.0),
+))
+
+
+@settings(max_examples=15, deadline=None)
+@given(FLOOR_CASES)
+def test_the_time_floor_is_each_joints_bang_bang_time_and_below_every_certified_trajectory(case):
+    """``solve.time_floor`` against the floor found the other way round (the least T whose
+    farthest rest-to-rest reach covers the joint's move, reference kinematics), and never
+    above the time of a trajectory the kernel certifies (the straight line slowed until
+    every column is within its limit)."""
+    start = np.array(WIDE.start, float)
+    goal = start + np.array([*case["move"], *case["attitude"], case["roll"]])
+    kw = dict(start=start, goal=goal, velocity=case["velocity"], acceleration=case["acceleration"],
+              travel=[200.0, 200.0, 200.0, 200.0], interval_bounds=(0.5, 1e4))
+    p = DockingProblem(**kw)
+    q0, q1 = R.joints_of_pose(p.start, p.arm_distance), R.joints_of_pose(p.goal, p.arm_distance)
+    lim = np.asarray(p.limits)
+    ref = [_coverage_floor(abs(b - a), v, acc) for a, b, v, acc in zip(q0, q1, lim[:, 1], lim[:, 2])]
+    np.testing.assert_allclose(solve.time_floor(p), ref, rtol=1e-9, atol=1e-12)
+    x = solve.straight_line(p, [1.0])[0]
+    for _ in range(10):  # the right arm's columns scale with time only approximately
+        _, G = p.evaluate(x[None], screen=False)
+        if np.all(G <= 0):
+            break
+        x = solve.time_scale(p, x, solve.scaling_need(G)[0] * (1 + 1e-6))
+    assert np.all(G <= 0) and np.sum(x[: p.n_intervals]) >= max(ref) * (1 - 1e-12)
+
+
+@pytest.mark.parametrize("limits, kind", [(dict(velocity=[400, 25, 0.4, 6.8]), "velocity"),
+                                          (dict(acceleration=[100, 100, 1e-3, 100]), "acceleration")])
+def test_a_move_beyond_the_floor_fails_at_once_naming_its_limit(limits, kind, monkeypatch):
+    """A lateral move of 30 mm that no trajectory makes within the longest T = 60 s: the
+    PlanError names d_L3 and the limit, with the excess of the least peak that would cover
+    the move in 60 s (reference: the roots of the trapezoid's v² / a − v T + d = 0, or the
+    triangle's 4 d / T²), and no SQP runs."""
+    monkeypatch.setattr(solve, "_slsqp", lambda *a, **k: pytest.fail("an SQP ran"))
+    p = DockingProblem(**limits)
+    with pytest.raises(solve.PlanError) as info:
+        plan(p, check_sensitivities=False)
+    e, T, d = info.value, 60.0, 30.0
+    v, a = np.asarray(p.limits)[2, 1:3]
+    peak = {"velocity": min(np.roots([1 / a, -T, d]).real) / v, "acceleration": 4 * d / T**2 / a}[kind]
+    assert (e.joint, e.quantity, e.limit) == ("d_L3", kind, dict(velocity=v, acceleration=a)[kind])
+    assert e.excess == pytest.approx(peak - 1, rel=1e-9) and e.excess > 0 and "30 mm" in str(e)
+    with pytest.raises(solve.PlanError):
+        best_known_front(p, n_points=4, n_exact=2)
 
 
 @pytest.mark.parametrize("preset", ["wide", "paper"])
