@@ -269,7 +269,11 @@ def time_floor(problem: DockingProblem) -> np.ndarray:
     ``d/v + v/a`` for a move ``d ≥ v²/a``, else the triangle ``2 √(d/a)``. Every trajectory
     the kernel certifies, of any family, takes at least the largest of them: a certified
     column bounds its quantity over the whole trajectory."""
-    d, (v, a) = _joint_moves(problem), _rate_limits(problem)
+    return _bang_bang(_joint_moves(problem), *_rate_limits(problem))
+
+
+def _bang_bang(d, v, a) -> np.ndarray:
+    """The least rest-to-rest time covering ``d`` within ``v`` and ``a`` (:func:`time_floor`)."""
     return np.where(d >= v * v / a, d / v + v / a, 2.0 * np.sqrt(d / a))
 
 
@@ -279,13 +283,13 @@ def floor_infeasibility(problem: DockingProblem) -> PlanError | None:
     joint's velocity limit, or its acceleration limit when even an unlimited velocity would
     not do (``4 d / T² > a``); ``excess``: the least peak of that quantity over its limit,
     minus 1, at the longest T. None otherwise."""
-    floor = time_floor(problem)
+    moves, (vs, accs) = _joint_moves(problem), _rate_limits(problem)
+    floor = _bang_bang(moves, vs, accs)
     T = problem.n_intervals * problem.interval_bounds[1]
     j = int(np.argmax(floor))
     if floor[j] <= T * (1.0 + 1e-9):
         return None
-    d = float(_joint_moves(problem)[j])
-    v, a = (float(lim[j]) for lim in _rate_limits(problem))
+    d, v, a = float(moves[j]), float(vs[j]), float(accs[j])
     kind = [k.name for k in robot.LIMIT_KINDS]
     if 4.0 * d > a * T * T:  # even the triangle at full acceleration is too slow
         k, excess = kind.index("acceleration"), 4.0 * d / (T * T) / a - 1.0
