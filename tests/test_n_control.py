@@ -134,8 +134,11 @@ def test_one_family_compiles_once_and_problems_of_two_families_differ():
 
 @pytest.mark.parametrize("algorithm", ["nsga2", "mopso", "mocs", "imocs"])
 def test_every_optimiser_runs_on_another_family_and_its_feasible_points_are_certified(algorithm):
+    """The host driver: the four runs share one compiled kernel call and each compiles only
+    its small ask/tell programs (the scan driver's agreement with it is checked on ZDT1,
+    tests/test_nsga2_mopso.py)."""
     p = DockingProblem(n_control=2)
-    res = optimize(algorithm, p, pop_size=8, n_iter=4, seeds=[0])
+    res = optimize(algorithm, p, pop_size=8, n_iter=4, seeds=[0], driver="host")
     assert res.X.shape == (1, 8, 15)
     X, G = np.asarray(res.X[0]), np.asarray(res.G[0])
     assert np.all(X >= p.lower - 1e-12) and np.all(X <= p.upper + 1e-12)
@@ -244,8 +247,10 @@ def test_a_large_programme_takes_its_values_without_the_jacobian_and_solves_alik
     p = DockingProblem(n_control=2, interval_bounds=(1.0, 10.0))
     u = np.random.default_rng(0).uniform(0.0, 1.0, p.n_var)
     with jax.enable_x64(True):
-        f, fg, g = (np.asarray(a) for a in solve._primal_values(p, u, 10.0, 0.5))
-        F, FG, G, _ = (np.asarray(a) for a in solve._values(p, u, 10.0, 0.5))
+        # scale and weight as solve passes them (np.float64: the programmes the solves below compile)
+        scale, weight = np.float64(10.0), np.float64(0.5)
+        f, fg, g = (np.asarray(a) for a in solve._primal_values(p, u, scale, weight))
+        F, FG, G, _ = (np.asarray(a) for a in solve._values(p, u, scale, weight))
     assert f == F and np.array_equal(fg, FG)
     np.testing.assert_allclose(g, G, rtol=1e-12, atol=1e-12)
 
