@@ -11,11 +11,11 @@ emitters instead of its default MLIR ones). With
 --xla_backend_optimization_level=2"`` it measures LLVM optimisation level 2 against the
 default (3), both with the classic emitters: the test suite's settings (``tests/conftest.py``).
 Each measurement is a fresh Python process (flags are read when JAX starts; no persistent
-compilation cache), the two sides alternating pair by pair so that the machine's load falls
-on both alike. Per program: seconds of XLA compilation (JAX's ``backend_compile`` events)
-and the median run time of ``--repeats`` calls after the first, then the ratios B / A
-(medians over the pairs), and the largest relative difference of the results between the
-sides.
+compilation cache, dockjax's store of programs off), the two sides alternating pair by
+pair so that the machine's load falls on both alike. Per program: seconds of XLA
+compilation (JAX's ``backend_compile`` events) and the median run time of ``--repeats``
+calls after the first, then the ratios B / A (medians over the pairs), and the largest
+relative difference of the results between the sides.
 
 Programs: ``evaluate`` (:meth:`dockjax.DockingProblem.evaluate` of the paper's problem,
 screened, ``--rows`` random candidates), ``optimize`` (IMOCS on the paper's problem, 2 seeds,
@@ -89,7 +89,7 @@ def _flags(extra: str) -> str:
 
 
 def _measure(extra: str, programs: list[str], rows: int, repeats: int) -> dict:
-    env = {**os.environ, "XLA_FLAGS": _flags(extra)}
+    env = {**os.environ, "XLA_FLAGS": _flags(extra), "DOCKJAX_PROGRAMS": "off"}  # compiled, not loaded
     r = subprocess.run([sys.executable, "-c", CHILD, ",".join(programs), str(rows), str(repeats)], env=env,
                        capture_output=True, text=True, timeout=1800)
     if r.returncode != 0:

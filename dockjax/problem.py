@@ -34,6 +34,7 @@ from .limits import BOUND_TOLERANCE, SCREEN_BAND, columns, maxima, maxima_screen
 from .objectives import jerk, jerk_nodes_for
 from .pytrees import pytree_dataclass, static
 from .right_arm import bound_overstatement, right_taylor_maxima
+from .store import stored_jit
 from .trajectory import Trajectory
 
 __all__ = ["DockingProblem", "RIGHT_ARM_MODES", "make_problem", "score", "score_batch", "bucket_rows", "pad_rows"]
@@ -573,7 +574,7 @@ def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | No
     return (F, G, need) if with_need else (F, G)
 
 
-@partial(jax.jit, static_argnums=0)
+@stored_jit(static_argnums=(0,))
 def _evaluate_rows(screen: bool, problem: DockingProblem, X):
     """:func:`score_batch` for :meth:`DockingProblem.evaluate` (``screen`` first: static),
     with the bound treatment's ``need`` flags."""

@@ -25,8 +25,9 @@ CACHE_OFF = ("off", "0", "none", "")
 
 def enable_compilation_cache(path: str | os.PathLike | None = None) -> Path | None:
     """Use JAX's persistent compilation cache, so that a new process reuses the programs an
-    earlier one compiled (a first :func:`dockjax.plan.plan` in a new process then costs a
-    few seconds of tracing and loading instead of 20–40 s of compilation).
+    earlier one compiled: every program, the optimisers' too. (The kernel's and the
+    planner's programs are loaded from dockjax's own store, :mod:`dockjax.store`, with or
+    without it.)
 
     The folder: ``path``, else ``$DOCKJAX_CACHE``, else ``~/.cache/dockjax/jax``; every
     program is kept, however quick its compilation. A cache the application configured

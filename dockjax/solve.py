@@ -48,6 +48,7 @@ from .objectives import jerk
 from .problem import DockingProblem
 from .right_arm import linearisation_remainders
 from .robot import ATTITUDE_JOINTS, by_kind
+from .store import stored_jit
 
 __all__ = ["Solution", "PlanError", "candidate_limits", "critical_times", "straight_line", "least_jerk",
            "least_jerk_front", "kept_start", "map_to", "refine_family", "min_time", "min_jerk", "shortest",
@@ -147,7 +148,7 @@ def _jerk(problem, x):
     return jerk(problem.robot, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)
 
 
-_jerk_value = jax.jit(_jerk)
+_jerk_value = stored_jit(_jerk)
 
 
 def _x_of(problem, u):
@@ -162,7 +163,7 @@ def _objective(u, problem, scale, time_weight):
     return (time_weight * jnp.sum(x[: problem.n_intervals]) + (1.0 - time_weight) * _jerk(problem, x)) / scale
 
 
-@jax.jit
+@stored_jit
 def _values(problem, u, scale, time_weight):
     """Objective ``(w T + (1 − w) jerk) / scale`` (w = ``time_weight``, 1 or 0: one compiled
     programme serves both programmes), its gradient, the constraints
@@ -181,7 +182,7 @@ def _values(problem, u, scale, time_weight):
     return fv, fg, gv, gj
 
 
-@jax.jit
+@stored_jit
 def _primal_values(problem, u, scale, time_weight):
     """:func:`_values` without the constraints' Jacobian: the objective, its gradient and the
     constraints. For a large family the Jacobian is most of :func:`_values`'s cost (at 32
@@ -602,7 +603,7 @@ def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     return sol
 
 
-@jax.jit
+@stored_jit
 def _limit_gradient(problem, x, lam):
     """``∂/∂L Σ λ g(x; L)`` over the candidate constraints, at the problem's limits (8, kinds)."""
     times = critical_times(problem, x)

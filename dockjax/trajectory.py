@@ -20,6 +20,7 @@ from . import bspline, checks, config, jets, robot
 from .config import DEG as _DEG
 from .decoding import decode
 from .io import atomic_write_text
+from .store import stored_jit
 
 if TYPE_CHECKING:
     from .problem import DockingProblem
@@ -59,7 +60,7 @@ def bucket_durations(t_lo: float, t_hi: float, rate: float) -> list[float]:
     return out
 
 
-@jax.jit
+@stored_jit
 def _jets_at(problem: "DockingProblem", x, t):
     """Pose jets (m, 6, 4) and joint jets (m, 8, 4) at times t (m,), orders 0..3."""
     h, u, c = decode(problem, x)

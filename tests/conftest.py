@@ -31,6 +31,7 @@ if str(ROOT) not in sys.path:
 CACHE = ROOT / ".pytest-jax-cache"
 os.environ.setdefault("DOCKJAX_CACHE", str(CACHE))
 os.environ.setdefault("DOCKJAX_FRONTS", str(CACHE / "fronts"))  # best-known fronts of the studies
+os.environ.setdefault("DOCKJAX_PROGRAMS", str(CACHE / "programs"))  # dockjax's store of compiled programs
 
 settings.register_profile("ci", max_examples=25, deadline=None, database=None,
                           suppress_health_check=[HealthCheck.too_slow])
