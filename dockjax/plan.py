@@ -13,6 +13,7 @@ limit that cannot be met. :func:`explain` says which limits bind and what each i
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import sys
 import tomllib
@@ -20,11 +21,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy
 from tqdm import tqdm
 
-from . import checks, config, plots, robot, select, solve
+from . import checks, config, plots, robot, select, solve, store
 from .algorithms import ALGORITHMS
-from .io import atomic_write_text, check_input_file, write_set
+from .io import DamagedFileError, atomic_savez, atomic_write_text, check_input_file, load_npz, write_set
 from .metrics import nondominated_points
 from .optimize import optimize
 from .problem import DockingProblem
@@ -563,11 +565,56 @@ def _exactly(problem: DockingProblem, sol: solve.Solution, T: float) -> solve.So
     return dataclasses.replace(sol, x=x, F=F[0], G=G[0])
 
 
+TEMPLATE_FORMAT = 1
+"""Version of the layout of a stored :func:`template` (part of its key)."""
+
+
+def template_key(problem: DockingProblem, n_front: int) -> str:
+    """The key of :func:`template`'s front (hex SHA-256): the problem's identity,
+    ``n_front``, :data:`TEMPLATE_FORMAT`, the package's sources and NumPy's and SciPy's
+    versions (the solver's)."""
+    text = json.dumps({"format": TEMPLATE_FORMAT, "problem": problem.identity(), "n_front": int(n_front),
+                       "sources": store.source_digest(), "numpy": np.__version__, "scipy": scipy.__version__},
+                      sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def template(problem: DockingProblem, n_front: int) -> np.ndarray:
+    """The front a :class:`Planner` carries over to new poses: the decision vectors
+    (1 + n_front, n_var) of the shortest-time solution and of the least-jerk solutions at
+    ``n_front`` caps (:func:`_direct_front`). Loaded from the store of compiled programs
+    (:func:`dockjax.store.folder`) when an earlier process solved the same problem
+    (:func:`template_key`; checksummed file), else solved and saved there; the same bits
+    either way (the solves are deterministic)."""
+    where = store.folder()
+    key = template_key(problem, n_front)
+    path = None if where is None else where / f"{key}.template.npz"
+    if path is not None and path.exists():
+        try:
+            d = load_npz(path, require_checksum=True)
+            if str(d["key"]) == key:
+                store.touch(path)
+                return d["X"]
+        except (DamagedFileError, KeyError):
+            pass  # solved again and replaced
+    shortest, front = _direct_front(problem, n_front)
+    X = np.array([shortest.x] + [s.x for s in front])
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_savez(path, {"X": X, "key": np.array(key)})
+            store.prune(where)
+        except OSError:  # a read-only folder: kept in memory only
+            pass
+    return X
+
+
 class Planner:
     """Plans for many start and goal poses of one problem shape, fast once warm.
 
     The first :meth:`plan` solves the problem given to the constructor in full
-    (:func:`plan`'s ``"direct"`` method) and keeps its front as a template. Every later
+    (:func:`plan`'s ``"direct"`` method) and keeps its front as a template (:func:`template`:
+    saved in the store of compiled programs, so a new process loads it). Every later
     call carries the template over to the new poses (:func:`dockjax.solve.map_to`), slows
     each point by exact time scaling until the kernel certifies it, chooses by the
     weights among them, and solves the least jerk (or the shortest time, for a zero jerk
@@ -601,12 +648,13 @@ class Planner:
         return DockingProblem(**fields)
 
     def warm(self) -> "Planner":
-        """Solve the template problem and compile the sampling of every trajectory length the
+        """Solve the template problem (or load its front from the store of an earlier
+        process, :func:`template`) and compile the sampling of every trajectory length the
         interval bounds allow (the first :meth:`plan` does it otherwise)."""
         if self._template is None:
-            shortest, front = _direct_front(self.problem, self.n_front)
-            self._template = np.array([shortest.x] + [s.x for s in front])
-            solve.min_jerk(self.problem, front[0].x, float(front[0].F[0]), max_iter=self.max_iter)
+            self._template = template(self.problem, self.n_front)
+            x = self._template[1]
+            solve.min_jerk(self.problem, x, float(np.sum(x[: self.problem.n_intervals])), max_iter=self.max_iter)
             # samples are computed in buckets of lengths: one trajectory per bucket compiles them all
             t_lo, t_hi = (self.problem.n_intervals * b for b in self.problem.interval_bounds)
             for T in bucket_durations(t_lo, t_hi, self.rate):

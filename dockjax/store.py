@@ -26,8 +26,13 @@ A call whose key cannot be formed this way (an argument that is a tracer, an arr
 another device, a static field of another type) goes through ``jax.jit`` as usual. So
 does every call when the store is off (``$DOCKJAX_PROGRAMS=off``). A file that cannot be
 read or loaded is compiled again and replaced; one that cannot be written (a read-only
-folder) is skipped: the store only ever saves time. Files are written whole (a temporary
-file renamed into place), so concurrent processes never read a partial one.
+folder) is skipped: the store only ever saves time. It keeps within :data:`MAX_BYTES`,
+removing the files least recently saved or loaded. Files are written whole (a temporary
+file renamed into place), so concurrent processes never read a partial one. The files are
+pickles: the folder is trusted as the Python path is (by default it is in the user's own
+cache folder).
+
+A :class:`dockjax.plan.Planner` keeps its template there too (:func:`dockjax.plan.template`).
 """
 
 from __future__ import annotations
@@ -37,7 +42,6 @@ import functools
 import hashlib
 import os
 import pickle
-import tempfile
 import time
 from pathlib import Path
 from typing import Callable
@@ -48,10 +52,17 @@ import numpy as np
 from jax._src import config as jax_config  # JAX's own trace key (:func:`_trace_options`); no public API has it
 from jax.experimental import serialize_executable
 
-__all__ = ["stored_jit", "folder", "key", "StoredFunction", "PROGRAMS_OFF"]
+from .io import atomic_write
+
+__all__ = ["stored_jit", "StoredFunction", "folder", "key", "source_digest", "touch", "prune", "MAX_BYTES",
+           "PROGRAMS_OFF"]
 
 FORMAT = 1
 """Version of the store's file layout (part of every key)."""
+
+MAX_BYTES = 4 << 30
+"""The store's size limit (bytes): past it, the files least recently saved or loaded are
+removed (:func:`prune`)."""
 
 PROGRAMS_OFF = ("off", "0", "none", "")
 """Values of ``$DOCKJAX_PROGRAMS`` that turn the store off."""
@@ -157,7 +168,7 @@ class StoredFunction:
         if not all(_plain_leaf(leaf) for leaf in leaves):
             return self.jitted(*args)
         avals = tuple(jax.typeof(leaf) for leaf in leaves)
-        memo = (static, tree, avals, _trace_options())
+        memo = (static, tree, avals, jax_config.trace_context())
         program = self._loaded.get(memo)
         if program is None:
             program = self._program(args, static, tree, avals)
@@ -204,7 +215,36 @@ def _load(path: Path, name: str):
     payload, in_tree, out_tree = record["program"]
     if (record["format"], record["key"], record["sha256"]) != (FORMAT, name, hashlib.sha256(payload).hexdigest()):
         raise ValueError(f"{path} is not the program {name}")
-    return serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
+    program = serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
+    touch(path)
+    return program
+
+
+def touch(path: Path) -> None:
+    """Mark a file of the store as used now (its modification time; :func:`prune` removes
+    the least recently used first). Nothing happens in a read-only folder."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass
+
+
+def prune(where: Path) -> None:
+    """Remove the store's files (programs and :func:`dockjax.plan.template` fronts) least
+    recently saved or loaded until the rest take at most :data:`MAX_BYTES`."""
+    files = []
+    for path in [*where.glob("*.program"), *where.glob("*.template.npz")]:
+        try:
+            st = path.stat()
+        except OSError:  # removed meanwhile by another process
+            continue
+        files.append((st.st_mtime, st.st_size, path))
+    total = sum(size for _, size, _ in files)
+    for _, size, path in sorted(files, key=lambda f: f[0]):
+        if total <= MAX_BYTES:
+            break
+        path.unlink(missing_ok=True)
+        total -= size
 
 
 def _save(path: Path, name: str, compiled, dynamic: tuple) -> None:
@@ -212,7 +252,6 @@ def _save(path: Path, name: str, compiled, dynamic: tuple) -> None:
     once a copy loaded from the bytes computes, on the call's own arguments ``dynamic``, bit
     for bit what ``compiled`` does (anything else, or a folder that cannot be written, and
     nothing is saved)."""
-    fh = None
     try:
         payload, in_tree, out_tree = serialize_executable.serialize(compiled)
         data = pickle.dumps({"format": FORMAT, "key": name, "sha256": hashlib.sha256(payload).hexdigest(),
@@ -222,12 +261,10 @@ def _save(path: Path, name: str, compiled, dynamic: tuple) -> None:
         if len(want) != len(got) or not all(_same_bits(a, b) for a, b in zip(want, got)):
             return
         path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".part", delete=False) as fh:
-            fh.write(data)
-        os.replace(fh.name, path)
+        atomic_write(path, lambda fh: fh.write(data))
+        prune(path.parent)
     except Exception:  # an executable that does not serialise, a read-only folder, a full disk
-        if fh is not None:
-            Path(fh.name).unlink(missing_ok=True)
+        pass
 
 
 def _same_bits(a, b) -> bool:

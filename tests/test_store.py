@@ -152,6 +152,25 @@ def test_a_file_whose_payload_or_key_differs_is_not_loaded(folder):
         _equal(store.stored_jit(_kernel)(spec, x), jax.jit(_kernel)(spec, x))  # and replaced
 
 
+def test_the_store_keeps_below_its_size_by_dropping_the_least_recently_used(folder, monkeypatch):
+    """Past :data:`dockjax.store.MAX_BYTES` the files least recently saved or loaded go."""
+    spec = _Spec(np.ones(3))
+    f = store.stored_jit(_kernel)
+    f(spec, np.ones(3))
+    (oldest,) = folder.glob("*.program")
+    size = oldest.stat().st_size
+    f(spec, np.ones((2, 3)))
+    newer = set(folder.glob("*.program")) - {oldest}
+    os.utime(oldest, (1e9, 1e9))
+    (second,) = newer
+    os.utime(second, (1.5e9, 1.5e9))
+    store.stored_jit(_kernel)(spec, np.ones(3))  # loaded: becomes the most recently used
+    monkeypatch.setattr(store, "MAX_BYTES", int(2.5 * size))
+    f(spec, np.ones((4, 3)))  # a third file: the least recently used one goes
+    left = set(folder.glob("*.program"))
+    assert oldest in left and second not in left and len(left) == 2
+
+
 @pytest.mark.parametrize("value", ["off", "0", "none", ""])
 def test_the_store_can_be_turned_off(monkeypatch, tmp_path, value):
     monkeypatch.setenv("DOCKJAX_PROGRAMS", value)
@@ -223,3 +242,32 @@ def test_a_new_process_loads_the_kernels_program_instead_of_compiling(folder, tm
     with jax.enable_x64(True):
         here = np.array([float(solve._jerk_value.jitted(problem, xi)) for xi in x])
     np.testing.assert_array_equal(first, here)
+
+
+def test_a_planners_template_is_saved_and_loaded_bit_for_bit(tmp_path, monkeypatch):
+    """A :class:`dockjax.plan.Planner` keeps its template front in the store: a new planner
+    of the same problem loads it without solving, and plans bit for bit alike; another
+    ``n_front`` or problem is another file; a damaged file is solved again."""
+    from dockjax import plan as P
+    from dockjax.problem import DockingProblem
+
+    problem = DockingProblem()
+    goal = np.asarray(problem.goal) + np.array([2.0, -1.0, 1.0, 0.05, 0.0, 0.5])
+    # the programs, loaded in this process from the run's store (the new folder then holds templates only)
+    shortest, front = P._direct_front(problem, 2)  # the front solved directly
+    P.Planner(problem, n_front=2).plan(goal=goal)
+    folder = tmp_path / "programs"
+    monkeypatch.setenv("DOCKJAX_PROGRAMS", str(folder))
+    first = P.Planner(problem, n_front=2)
+    np.testing.assert_array_equal(first.warm()._template, np.array([shortest.x] + [s.x for s in front]))
+    (path,) = folder.glob("*.template.npz")
+    a = first.plan(goal=goal)
+    monkeypatch.setattr(P, "_direct_front", lambda *a, **k: pytest.fail("the template was solved again"))
+    b = P.Planner(problem, n_front=2).plan(goal=goal)
+    np.testing.assert_array_equal(b.x, a.x)
+    assert (b.T, b.jerk) == (a.T, a.jerk)
+    assert P.template_key(problem, 3) != P.template_key(problem, 2)
+    assert P.template_key(DockingProblem(goal=goal), 2) != P.template_key(problem, 2)
+    path.write_bytes(path.read_bytes()[:-40])
+    with pytest.raises(pytest.fail.Exception, match="solved again"):
+        P.Planner(problem, n_front=2).warm()
