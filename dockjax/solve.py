@@ -248,12 +248,21 @@ class PlanError(RuntimeError):
                    limit=limit, unit=unit, excess=excess)
 
 
+MOVE_ROUNDING = 64.0
+"""The joint moves of :func:`_joint_moves` are reduced by this many units of float64
+rounding of the joint values (``eps · max(|q_start|, |q_goal|, 1)``): a bound on the
+rounding of the inverse kinematics and the difference, so that the moves, and the time
+floor built on them, never exceed the exact ones."""
+
+
 def _joint_moves(problem: DockingProblem) -> np.ndarray:
-    """(8,) |goal − start| of each joint (mm, °), in float64."""
+    """(8,) |goal − start| of each joint (mm, °), in float64, less its rounding
+    (:data:`MOVE_ROUNDING`; at least 0): never above the exact move."""
     with jax.enable_x64(True):
         q0, q1 = (np.asarray(inverse_kinematics(np.asarray(p, np.float64), problem.arm_distance))
                   for p in (problem.start, problem.goal))
-    return np.abs(q1 - q0)
+    rounding = MOVE_ROUNDING * np.finfo(np.float64).eps * np.maximum(np.maximum(np.abs(q0), np.abs(q1)), 1.0)
+    return np.maximum(np.abs(q1 - q0) - rounding, 0.0)
 
 
 def _rate_limits(problem: DockingProblem) -> tuple[np.ndarray, np.ndarray]:
