@@ -215,7 +215,7 @@ def _load(path: Path, name: str):
     payload, in_tree, out_tree = record["program"]
     if (record["format"], record["key"], record["sha256"]) != (FORMAT, name, hashlib.sha256(payload).hexdigest()):
         raise ValueError(f"{path} is not the program {name}")
-    program = serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
+    program = serialize_executable.deserialize_and_load(payload, in_tree, out_tree, execution_devices=_device())
     touch(path)
     return program
 
@@ -256,7 +256,7 @@ def _save(path: Path, name: str, compiled, dynamic: tuple) -> None:
         payload, in_tree, out_tree = serialize_executable.serialize(compiled)
         data = pickle.dumps({"format": FORMAT, "key": name, "sha256": hashlib.sha256(payload).hexdigest(),
                              "program": (payload, in_tree, out_tree)})
-        copy = serialize_executable.deserialize_and_load(*pickle.loads(data)["program"])
+        copy = serialize_executable.deserialize_and_load(*pickle.loads(data)["program"], execution_devices=_device())
         want, got = jax.tree.leaves(compiled(*dynamic)), jax.tree.leaves(copy(*dynamic))
         if len(want) != len(got) or not all(_same_bits(a, b) for a, b in zip(want, got)):
             return
@@ -265,6 +265,12 @@ def _save(path: Path, name: str, compiled, dynamic: tuple) -> None:
         prune(path.parent)
     except Exception:  # an executable that does not serialise, a read-only folder, a full disk
         pass
+
+
+def _device() -> list:
+    """The device a stored program runs on: JAX's default one (the programs are compiled
+    for one device, also in a process with several)."""
+    return jax.devices()[:1]
 
 
 def _same_bits(a, b) -> bool:

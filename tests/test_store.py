@@ -205,6 +205,7 @@ def test_calls_the_store_cannot_key_go_through_jit(folder):
 SCRIPT = r"""
 import sys
 import jax
+jax.config.update("jax_num_cpu_devices", 2)  # as the command lines ask: the programs use one of them
 import numpy as np
 import dockjax
 from dockjax import solve
@@ -226,7 +227,8 @@ with jax.enable_x64(True):
 
 def test_a_new_process_loads_the_kernels_program_instead_of_compiling(folder, tmp_path):
     """A dockjax program compiled in one process is loaded by the next, whose results are
-    bit for bit the first's (and this process's ``jax.jit``)."""
+    bit for bit the first's (and this process's ``jax.jit``); both processes have two CPU
+    devices, as the command lines do."""
     env = {**os.environ, "DOCKJAX_PROGRAMS": str(folder)}
     for name, mode in (("first", "compile"), ("second", "load")):
         r = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / f"{name}.npy"), mode], env=env,
