@@ -1,7 +1,7 @@
 """The shortest-time programme of many moves solved by the batched SQP (dockjax.sqp, one
 compiled, vmapped call) beside SciPy's SLSQP (dockjax.solve.min_time, one move at a time).
 
-python benchmarks/bench_sqp.py [--preset wide] [--batches 1 8 64] [--repeats 3] [--slsqp 3] [--seed 0]
+python benchmarks/bench_sqp.py [--preset wide] [--batches 1 8 64] [--repeats 3] [--slsqp 3] [--seed 0] [--rows 64]
 python benchmarks/bench_sqp.py --batches 1 --repeats 1 --slsqp 0 --n-control 3 --max-iter 3  # quick
 
 Moves: the preset's start and goal, each moved by up to ± 5 mm and ± 0.1° (a seeded draw),
@@ -76,16 +76,17 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--n-control", type=int, default=5, help="free control points")
     ap.add_argument("--max-iter", type=int, default=150, help="most SQP iterations")
+    ap.add_argument("--rows", type=int, default=sqp.Params().rows, help="constraints in each QP (nearest active)")
     args = ap.parse_args(argv)
-    if min(args.batches) < 1 or args.repeats < 1 or args.slsqp < 0 or args.max_iter < 1:
-        ap.error("--batches, --repeats and --max-iter must be at least 1, --slsqp at least 0")
+    if min(args.batches) < 1 or args.repeats < 1 or args.slsqp < 0 or args.max_iter < 1 or args.rows < 1:
+        ap.error("--batches, --repeats, --max-iter and --rows must be at least 1, --slsqp at least 0")
     out = {"batches": []}
     with jax.enable_x64(True):
         base = make_problem(args.preset, n_control=args.n_control)
         problems = _moves(base, max(max(args.batches), args.slsqp), args.seed)
         starts = [_start(p) for p in problems]
-        run = _programme(sqp.Params(max_iter=args.max_iter))
-        print(f"{args.preset} preset, n_control {args.n_control}, max_iter {args.max_iter}")
+        run = _programme(sqp.Params(max_iter=args.max_iter, rows=args.rows))
+        print(f"{args.preset} preset, n_control {args.n_control}, max_iter {args.max_iter}, rows {args.rows}")
         print(f"{'B':>6} {'compile s':>10} {'warm s':>8} {'programmes/s':>13} {'iter median':>12} {'iter max':>9}")
         for B in args.batches:
             stack = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(v) for v in a]), *problems[:B])

@@ -1,5 +1,6 @@
 """Sequential quadratic programming as a JAX array program: one smooth programme per call,
-``vmap`` for a batch of programmes (:func:`dockjax.bulk.plan_batch`).
+``vmap`` for a batch of programmes, such as the shortest-time programmes of many moves
+(``benchmarks/bench_sqp.py``).
 
 The programme, in unit-box coordinates ``u`` (n,)::
 
@@ -40,7 +41,8 @@ class Params:
     qp_iter: int = static(24)
     """Interior-point iterations of each quadratic programme."""
     rows: int = static(64)
-    """Constraints of c kept in each quadratic programme (those nearest their limits)."""
+    """Constraints of c kept in each quadratic programme (those nearest their limits; all when c has
+    fewer)."""
     tol: float = static(1e-10)
     """Converged when the step's largest coordinate and the largest violation are below it."""
 
@@ -155,7 +157,7 @@ def step(state: State, values: Callable, primal: Callable, a, b, top, params: Pa
     f, gf, c, J = values(u)
     y = gf + J.T @ state.lam - state.g_lag
     B = jnp.where(state.k > 0, _bfgs(state.B, state.s, y), state.B)
-    idx = jax.lax.top_k(c, params.rows)[1]
+    idx = jax.lax.top_k(c, min(params.rows, c.shape[0]))[1]
     A = jnp.concatenate([J[idx], a[None]])
     rhs = jnp.concatenate([-c[idx], (b - a @ u)[None]])
     d, z = solve_qp(B, gf, A, rhs, -u, top - u, params.qp_iter)
