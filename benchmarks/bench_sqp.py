@@ -1,7 +1,7 @@
 """The shortest-time programme of many moves solved by the batched SQP (dockjax.sqp, one
 compiled, vmapped call) beside SciPy's SLSQP (dockjax.solve.min_time, one move at a time).
 
-python benchmarks/bench_sqp.py [--preset wide] [--batches 1 8 64] [--repeats 3] [--slsqp 3] [--seed 0] [--rows 64]
+python benchmarks/bench_sqp.py [--preset wide] [--batches 1 8 64] [--repeats 3] [--slsqp 3] [--seed 0] [--rows 128]
 python benchmarks/bench_sqp.py --batches 1 --repeats 1 --slsqp 0 --n-control 3 --max-iter 3  # quick
 
 Moves: the preset's start and goal, each moved by up to ± 5 mm and ± 0.1° (a seeded draw),

@@ -40,7 +40,7 @@ class Params:
     """Most SQP iterations."""
     qp_iter: int = static(24)
     """Interior-point iterations of each quadratic programme."""
-    rows: int = static(64)
+    rows: int = static(128)
     """Constraints of c kept in each quadratic programme (those nearest their limits; all when c has
     fewer)."""
     tol: float = static(1e-10)
