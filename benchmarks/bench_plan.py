@@ -3,7 +3,8 @@ control points and jerk limits beside ruckig.
 
 python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--jerk-limits 25] [--n-front 8] [--peer-rate 10000]
                                 [--figure docs/plan_peers.png] [--best-known 40 20 600] [--controls 5 16 32]
-python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1e3 --controls 2 # quick
+                                [--batches 1 10 100] [--batch-bounds 0.5 10]
+python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1e3 --controls 2 --batches 4 --batch-bounds 0.5 3 # quick
 
 The default start and goal with paper Table 2 limits, knot intervals in [0.5, 10] s (the
 ``wide`` preset, where time is limited by the joints rather than by the box). Rows:
@@ -40,6 +41,14 @@ same velocity, acceleration and jerk limits. Per n: T, T over ruckig's, the larg
 |jerk| over its limit (at ``--peer-rate``) and the kernel's largest column (certified: at
 most 0), and the wall time of one warm :func:`dockjax.plan.plan` call (after one call that
 compiles) and its ratio to the first n's.
+
+The batch table (``--batches``, no values to skip it) plans B random moves (the default
+start and goal ± 5 mm, ± 0.1°, seeded) with knot intervals in ``--batch-bounds`` by
+:func:`dockjax.bulk.plan_batch` (weights (1, 1), ``--n-front`` caps): per B the first call
+(compile and run; the compiled program is then kept in dockjax's store), the warm call, plans
+per second, the moves found feasible, and the median SQP iterations; then the SLSQP planner
+(:func:`dockjax.plan.plan`, warm) on the first moves, one at a time, for plans per second
+and the largest relative gaps of T_min and of the chosen plan's T and jerk.
 """
 
 from __future__ import annotations
@@ -54,6 +63,7 @@ import numpy as np
 
 from dockjax import config, plots
 from dockjax.best_known import best_known_front
+from dockjax.bulk import plan_batch
 from dockjax.kinematics import inverse_kinematics
 from dockjax.plan import Planner, plan
 from dockjax.problem import DockingProblem, make_problem
@@ -184,6 +194,41 @@ def n_control_table(n_controls, rate: float, skipped: list[str]) -> None:
         print(f"\nruckig's time-optimal move under the jerk limits: T = {ruck:.3f} s")
 
 
+def batch_table(batches, bounds, n_front: int, repeats: int, slsqp: int = 3) -> None:
+    """The batch table (module docstring)."""
+    problem = DockingProblem(interval_bounds=bounds)
+    rng = np.random.default_rng(0)
+    step = np.array([5.0, 5.0, 5.0, 0.1, 0.1, 0.1])
+    S = np.asarray(problem.start) + rng.uniform(-1, 1, (max(batches), 6)) * step
+    G = np.asarray(problem.goal) + rng.uniform(-1, 1, (max(batches), 6)) * step
+    print(f"plan_batch: random moves (default ± 5 mm, ± 0.1°), intervals in {bounds} s, weights (1, 1), "
+          f"{n_front} caps\n")
+    print("| B | first call [s] | warm call [s] | plans/s | feasible | SQP iterations (median) |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for B in batches:
+        t = time.perf_counter()
+        res = plan_batch(problem, S[:B], G[:B], n_front=n_front)
+        first = time.perf_counter() - t
+        res, dt = _median_time(lambda: plan_batch(problem, S[:B], G[:B], n_front=n_front),
+                               repeats if B <= 10 else 1)
+        print(f"| {B} | {first:.1f} | {dt:.2f} | {B / dt:.2f} | {int(res.feasible.sum())} | "
+              f"{np.median(res.iterations):.0f} |")
+    times, gaps = [], []
+    for i in range(min(slsqp, len(res))):
+        one = res.move(i)
+        plan(one, n_front=n_front, check_sensitivities=False)  # compile
+        p, dt = _median_time(lambda: plan(one, n_front=n_front, check_sensitivities=False), 1)
+        times.append(dt)
+        if res.feasible[i]:
+            gaps.append([abs(res.T_min[i] / p.settings["shortest_T_s"] - 1), abs(res.T[i] / p.T - 1),
+                         abs(res.jerk[i] / p.jerk - 1)])
+    if times:
+        g = np.max(gaps, axis=0) if gaps else [np.nan] * 3
+        print(f"\nSLSQP planner (plan, warm), {len(times)} moves one at a time: median {np.median(times):.2f} s per "
+              f"plan ({1 / np.median(times):.2f} plans/s); largest relative gaps to plan_batch: T_min {g[0]:.1e}, "
+              f"chosen T {g[1]:.1e}, chosen jerk {g[2]:.1e}\n")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=7)
@@ -199,13 +244,21 @@ def main(argv: list[str] | None = None) -> None:
                     help="the figure's best-known front: time caps, SQP anchors, refinement steps per cap")
     ap.add_argument("--controls", type=int, nargs="*", default=[5, 16, 32],
                     help="free control points of the last table's plans (none: skip it)")
+    ap.add_argument("--batches", type=int, nargs="*", default=[1, 10, 100],
+                    help="batch sizes B of plan_batch (none: skip the batch table)")
+    ap.add_argument("--batch-bounds", type=float, nargs=2, default=[0.5, 10.0], metavar=("LO", "HI"),
+                    help="knot interval bounds of the batch table's moves (s)")
     args = ap.parse_args(argv)
-    if args.repeats < 1 or args.replans < 1 or args.jerk_limits < 1:
-        ap.error("--repeats, --replans and --jerk-limits must be >= 1")
+    if args.repeats < 1 or args.replans < 1 or args.jerk_limits < 1 or any(b < 1 for b in args.batches):
+        ap.error("--repeats, --replans, --jerk-limits and --batches must be >= 1")
+    if not 0 < args.batch_bounds[0] < args.batch_bounds[1]:
+        ap.error(f"--batch-bounds must satisfy 0 < LO < HI, got {args.batch_bounds}")
     if any(not 1 <= n <= config.MAX_CONTROL for n in args.controls):
         ap.error(f"--controls values must be from 1 to {config.MAX_CONTROL}, got {args.controls}")
     if not args.peer_rate > 0:
         ap.error(f"--peer-rate must be > 0, got {args.peer_rate}")
+    if args.batches:
+        batch_table(args.batches, tuple(args.batch_bounds), args.n_front, args.repeats)
     problem = make_problem("wide")
     lim = np.asarray(problem.limits)
     q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))

@@ -7,7 +7,8 @@ anything is written: the trajectory sampled at the servo rate must respect every
 every sample, and the kernel's per-span maxima (conventions §6: rigorous upper bounds, never
 understated, in every right-arm treatment) must too; otherwise :class:`PlanError` names the
 limit that cannot be met. :func:`explain` says which limits bind and what each is worth;
-:class:`Planner` replans new poses of one problem in milliseconds.
+:class:`Planner` replans new poses of one problem in milliseconds; :func:`plan_batch`
+(:mod:`dockjax.bulk`) plans many moves in one compiled call.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from tqdm import tqdm
 
 from . import checks, config, plots, robot, select, solve, store
 from .algorithms import ALGORITHMS
+from .bulk import BatchPlan, plan_batch
 from .io import DamagedFileError, atomic_savez, atomic_write_text, check_input_file, load_npz, write_set
 from .metrics import nondominated_points
 from .optimize import optimize
@@ -35,8 +37,8 @@ from .solve import PlanError
 from .trajectory import Trajectory, bucket_durations
 from .version import __version__
 
-__all__ = ["PlanError", "Plan", "Planner", "plan", "explain", "explain_text", "check_options", "check_move",
-           "load_limits", "write_plan", "check_duration", "METHODS"]
+__all__ = ["PlanError", "Plan", "Planner", "plan", "plan_batch", "BatchPlan", "explain", "explain_text",
+           "check_options", "check_move", "load_limits", "write_plan", "check_duration", "METHODS"]
 
 
 @dataclass
@@ -552,7 +554,8 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
             break
         cap *= T / sol.F[0]
         tried = [sol.x]
-    exact = [s for s in exact if np.all(s.G <= 0)]
+    # certified, and of exactly T: slowing cuts an interval at its upper bound, a shorter trajectory
+    exact = [s for s in exact if np.all(s.G <= 0) and abs(s.F[0] - T) <= 1e-9 * T]
     return min(exact, key=lambda s: s.F[1]) if exact else None
 
 

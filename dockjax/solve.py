@@ -209,21 +209,23 @@ def time_scale(problem: DockingProblem, x, s: float) -> np.ndarray:
     return x
 
 
-def scaling_needs(G) -> np.ndarray:
+def scaling_needs(G):
     """Per limit column, the exact time scaling ``s`` that brings it down to its limit:
     G (..., 8 · kinds) → (..., 8, kinds). A kind of time-scaling power p
     (:data:`dockjax.robot.LIMIT_KINDS`: velocity 1, acceleration 2, jerk 3) scales by ``1/s^p``,
     so ``s`` is the p-th root of ``G + 1`` (the maximum over the limit); travel does not
-    scale (0)."""
-    r = by_kind(G) + 1.0
-    root = {0: np.zeros_like, 1: lambda v: v, 2: lambda v: np.sqrt(np.maximum(v, 0.0)), 3: np.cbrt}
-    return np.stack([root[k.power](r[..., i]) for i, k in enumerate(robot.kinds_of(r.shape[-1]))], -1)
+    scale (0). NumPy in, NumPy out (float64); a JAX array (also traced) in, JAX out."""
+    xp = jnp if isinstance(G, jax.Array) else np
+    r = (G.reshape(G.shape[:-1] + (config.N_JOINTS, -1)) if xp is jnp else by_kind(G)) + 1.0
+    root = {0: xp.zeros_like, 1: lambda v: v, 2: lambda v: xp.sqrt(xp.maximum(v, 0.0)), 3: xp.cbrt}
+    return xp.stack([root[k.power](r[..., i]) for i, k in enumerate(robot.kinds_of(r.shape[-1]))], -1)
 
 
-def scaling_need(G) -> np.ndarray:
+def scaling_need(G):
     """The least time scaling ``s ≥ 1`` after which no rate column of G (..., 8 · kinds)
     exceeds its limit (:func:`scaling_needs`). → (...,)."""
-    return np.maximum(1.0, scaling_needs(G).max(axis=(-2, -1)))
+    xp = jnp if isinstance(G, jax.Array) else np
+    return xp.maximum(1.0, scaling_needs(G).max(axis=(-2, -1)))
 
 
 class PlanError(RuntimeError):

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 
 from .pytrees import pytree_dataclass, static
 
-__all__ = ["Params", "State", "solve_qp", "init", "step", "run"]
+__all__ = ["Params", "State", "solve_qp", "init", "step", "run", "positive_definite"]
 
 
 @pytree_dataclass
@@ -53,7 +53,8 @@ class State:
     multipliers ``lam`` (m,) of c and ``lam_cap`` of the linear row, the gradient of the
     Lagrangian at the previous iterate with the current multipliers ``g_lag`` (n,), the
     previous step ``s`` (n,), the merit penalty ``nu``, the iteration count ``k``,
-    ``fresh`` (B was just reset to the identity) and ``done``."""
+    ``fresh`` (B was just reset to ``B0``), ``done``, and ``B0`` (n, n), the estimate a reset
+    returns to (the identity, or a positive definite form of the objective's Hessian)."""
 
     u: jax.Array
     B: jax.Array
@@ -65,6 +66,7 @@ class State:
     k: jax.Array
     fresh: jax.Array
     done: jax.Array
+    B0: jax.Array
 
 
 def solve_qp(H, g, A, b, lo, hi, iters: int):
@@ -126,13 +128,25 @@ ARMIJO = 1e-4
 """Armijo's sufficient-decrease fraction of the merit's directional derivative."""
 
 
-def init(u0, lam_shape: int) -> State:
-    """The state at ``u0`` (n,): the identity as Hessian estimate, zero multipliers."""
+def init(u0, lam_shape: int, B0=None) -> State:
+    """The state at ``u0`` (n,): ``B0`` (n, n; default the identity) as Hessian estimate, zero
+    multipliers."""
     n = u0.shape[0]
     z = jnp.zeros((), u0.dtype)
-    return State(u=u0, B=jnp.eye(n, dtype=u0.dtype), lam=jnp.zeros(lam_shape, u0.dtype), lam_cap=z,
+    B0 = jnp.eye(n, dtype=u0.dtype) if B0 is None else B0
+    return State(u=u0, B=B0, lam=jnp.zeros(lam_shape, u0.dtype), lam_cap=z,
                  g_lag=jnp.zeros(n, u0.dtype), s=jnp.zeros(n, u0.dtype), nu=jnp.ones((), u0.dtype),
-                 k=jnp.zeros((), jnp.int32), fresh=jnp.ones((), bool), done=jnp.zeros((), bool))
+                 k=jnp.zeros((), jnp.int32), fresh=jnp.ones((), bool), done=jnp.zeros((), bool), B0=B0)
+
+
+def positive_definite(H, floor: float = 1e-6):
+    """H (n, n) symmetric with its eigenvalues raised to at least ``floor`` × the largest |eigenvalue|
+    (and 1e-8): a positive definite Hessian estimate from an indefinite or singular one (the
+    identity where H is zero, e.g. a linear objective)."""
+    w, V = jnp.linalg.eigh(0.5 * (H + H.T))
+    top = jnp.max(jnp.abs(w))
+    w = jnp.where(top > 0, jnp.maximum(w, jnp.maximum(floor * top, 1e-8)), 1.0)
+    return (V * w) @ V.T
 
 
 def _bfgs(B, s, y):
@@ -183,14 +197,18 @@ def step(state: State, values: Callable, primal: Callable, a, b, top, params: Pa
     # no step lowers the merit: the Hessian estimate starts afresh, and a fresh one that
     # fails too marks a stationary point of the merit
     done = done | (~better & state.fresh)
-    B = jnp.where(better, B, jnp.eye(u.shape[0], dtype=u.dtype))
+    B = jnp.where(better, B, state.B0)
     return State(u=u_new, B=B, lam=lam, lam_cap=z[-1], g_lag=gf + J.T @ lam, s=s, nu=nu, k=state.k + 1,
-                 fresh=~better, done=done)
+                 fresh=~better, done=done, B0=state.B0)
 
 
-def run(u0, values: Callable, primal: Callable, a, b, top, m: int, params: Params = Params()) -> State:
+def run(u0, values: Callable, primal: Callable, a, b, top, m: int, params: Params = Params(),
+        hessian: Callable | None = None) -> State:
     """SQP from ``u0`` (n,) until converged or :attr:`Params.max_iter` (see :func:`step`;
-    ``m``: the number of constraints c). → the final :class:`State`."""
-    state = init(u0, m)
+    ``m``: the number of constraints c). ``hessian(u) -> (n, n)``: the objective's Hessian,
+    whose :func:`positive_definite` form at u0 starts (and restarts) the quasi-Newton
+    estimate instead of the identity (a quadratic objective's curvature is then known from
+    the first step). → the final :class:`State`."""
+    state = init(u0, m, None if hessian is None else positive_definite(hessian(u0)))
     return jax.lax.while_loop(lambda st: (st.k < params.max_iter) & ~st.done,
                               lambda st: step(st, values, primal, a, b, top, params), state)
