@@ -116,11 +116,12 @@ def stack_moves(problem: DockingProblem, starts, goals) -> DockingProblem:
     limits, interval bounds and family, as one :class:`DockingProblem` whose leaves carry a
     leading batch axis of B (vmap over it). Each move gets what ``DockingProblem`` gives a
     single move: its home (the midpoint of its start and goal joints, unless ``problem``'s
-    home was given explicitly, then that one), its control-point box; the jerk quadrature has the
-    most nodes any move needs, the right arm keeps ``problem``'s treatment (each is
+    home was given explicitly, then that one) and its control-point box. The jerk quadrature
+    has the most nodes any move needs; the right arm keeps ``problem``'s treatment (each is
     certified: ``"bound"`` may overstate a column a little more for a move of larger
-    attitude than ``problem``'s, never understate it). Checked vectorised (ValueError naming the move): a start equal
-    to its goal, a joint move longer than its stroke, a start or goal outside the travel."""
+    attitude than ``problem``'s, never understate it). Checked vectorised (ValueError naming
+    the move): a start equal to its goal, a joint move longer than its stroke, a start or
+    goal outside the travel."""
     if not isinstance(problem, DockingProblem):
         raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
     if problem.reduced:
