@@ -367,9 +367,7 @@ def _bucket(b: int) -> int:
 def _floor(problem: DockingProblem, S, G) -> np.ndarray:
     """(B,) whether some joint's least rest-to-rest time exceeds the longest T
     (:func:`dockjax.solve.time_floor`, vectorised with the same rounding allowance)."""
-    q0, q1 = _joints(problem, S), _joints(problem, G)
-    rounding = solve.MOVE_ROUNDING * np.finfo(np.float64).eps * np.maximum(np.maximum(np.abs(q0), np.abs(q1)), 1.0)
-    d = np.maximum(np.abs(q1 - q0) - rounding, 0.0)
+    d = solve.moves_less_rounding(_joints(problem, S), _joints(problem, G))
     v, a = solve._rate_limits(problem)
     floor = solve._bang_bang(d, v, a).max(axis=1)
     return floor > problem.n_intervals * problem.interval_bounds[1] * (1.0 + 1e-9)

@@ -263,6 +263,12 @@ def _joint_moves(problem: DockingProblem) -> np.ndarray:
     with jax.enable_x64(True):
         q0, q1 = (np.asarray(inverse_kinematics(np.asarray(p, np.float64), problem.arm_distance))
                   for p in (problem.start, problem.goal))
+    return moves_less_rounding(q0, q1)
+
+
+def moves_less_rounding(q0, q1) -> np.ndarray:
+    """|q1 − q0| of joint values (..., 8) in float64, less their rounding
+    (:data:`MOVE_ROUNDING`; at least 0): never above the exact moves."""
     rounding = MOVE_ROUNDING * np.finfo(np.float64).eps * np.maximum(np.maximum(np.abs(q0), np.abs(q1)), 1.0)
     return np.maximum(np.abs(q1 - q0) - rounding, 0.0)
 
