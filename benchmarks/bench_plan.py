@@ -3,8 +3,8 @@ control points and jerk limits beside ruckig.
 
 python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--jerk-limits 25] [--n-front 8] [--peer-rate 10000]
                                 [--figure docs/plan_peers.png] [--best-known 40 20 600] [--controls 5 16 32]
-                                [--batches 1 10 100] [--batch-bounds 0.5 10]
-python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1e3 --controls 2 --batches 4 --batch-bounds 0.5 3 # quick
+                                [--batches 1 10 100] [--batch-bounds 0.5 10] [--batch-slsqp 3]
+python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1e3 --controls 5 --batches 4 --batch-bounds 0.5 3 --batch-slsqp 1 # quick
 
 The default start and goal with paper Table 2 limits, knot intervals in [0.5, 10] s (the
 ``wide`` preset, where time is limited by the joints rather than by the box). Rows:
@@ -47,7 +47,7 @@ start and goal ± 5 mm, ± 0.1°, seeded) with knot intervals in ``--batch-bound
 :func:`dockjax.bulk.plan_batch` (weights (1, 1), ``--n-front`` caps): per B the first call
 (compile and run; the compiled program is then kept in dockjax's store), the warm call, plans
 per second, the moves found feasible, and the median SQP iterations; then the SLSQP planner
-(:func:`dockjax.plan.plan`, warm) on the first moves, one at a time, for plans per second
+(:func:`dockjax.plan.plan`, warm) on the first ``--batch-slsqp`` moves, one at a time, for plans per second
 and the largest relative gaps of T_min and of the chosen plan's T and jerk.
 """
 
@@ -248,9 +248,11 @@ def main(argv: list[str] | None = None) -> None:
                     help="batch sizes B of plan_batch (none: skip the batch table)")
     ap.add_argument("--batch-bounds", type=float, nargs=2, default=[0.5, 10.0], metavar=("LO", "HI"),
                     help="knot interval bounds of the batch table's moves (s)")
+    ap.add_argument("--batch-slsqp", type=int, default=3,
+                    help="moves of the batch table also planned by the SLSQP planner, one at a time")
     args = ap.parse_args(argv)
-    if args.repeats < 1 or args.replans < 1 or args.jerk_limits < 1 or any(b < 1 for b in args.batches):
-        ap.error("--repeats, --replans, --jerk-limits and --batches must be >= 1")
+    if min(args.repeats, args.replans, args.jerk_limits, args.batch_slsqp, *args.batches) < 1:
+        ap.error("--repeats, --replans, --jerk-limits, --batches and --batch-slsqp must be >= 1")
     if not 0 < args.batch_bounds[0] < args.batch_bounds[1]:
         ap.error(f"--batch-bounds must satisfy 0 < LO < HI, got {args.batch_bounds}")
     if any(not 1 <= n <= config.MAX_CONTROL for n in args.controls):
@@ -258,7 +260,7 @@ def main(argv: list[str] | None = None) -> None:
     if not args.peer_rate > 0:
         ap.error(f"--peer-rate must be > 0, got {args.peer_rate}")
     if args.batches:
-        batch_table(args.batches, tuple(args.batch_bounds), args.n_front, args.repeats)
+        batch_table(args.batches, tuple(args.batch_bounds), args.n_front, args.repeats, args.batch_slsqp)
     problem = make_problem("wide")
     lim = np.asarray(problem.limits)
     q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))

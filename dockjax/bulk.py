@@ -70,8 +70,8 @@ class BatchPlan:
     ``feasible`` (B,) bool; ``errors``: per move None or the :class:`PlanError` naming the
     limit that rules the move out; ``front`` (B, 1 + n_front, 2): (T, jerk) of the
     time-optimal trajectory and of each cap's least-jerk one (with a duration: of each
-    programme's answer at the duration, before it is slowed to it; NaN where nothing
-    certified was found); ``chosen`` (B,): the index into ``front`` of the chosen point (−1
+    programme's answer time-scaled to exactly the duration; NaN where nothing certified was
+    found); ``chosen`` (B,): the index into ``front`` of the chosen point (−1
     with a duration or infeasible); ``iterations`` (B,): SQP iterations of the shortest-time
     programme, ``front_iterations`` (B, 1 + n_front) of the front's; ``problem``: the batched
     problem (a :class:`DockingProblem` whose leaves carry
@@ -208,16 +208,19 @@ def _certified(p: DockingProblem, x):
         travel = G.reshape(config.N_JOINTS, kinds)[:, 0]
         return jnp.any(travel > 0) | jnp.any(x[:n] > p.upper[:n]) | ~jnp.all(jnp.isfinite(G))
 
+    # k counts the kernel's evaluations: the first scores x as it is, each later one after a
+    # scaling (one call of the kernel in the loop's body, so one copy in the program)
     def cond(c):
         x, F, G, k = c
-        return (k < ROUNDS) & jnp.any(G > 0) & ~failed(x, G)
+        return (k == 0) | ((k <= ROUNDS) & jnp.any(G > 0) & ~failed(x, G))
 
     def body(c):
         x, F, G, k = c
-        x = x.at[:n].multiply(solve.scaling_need(G) * (1.0 + 1e-9))
+        x = x.at[:n].multiply(jnp.where(k == 0, 1.0, solve.scaling_need(G) * (1.0 + 1e-9)))
         return (x, *_score(p, x), k + 1)
 
-    x, F, G, _ = jax.lax.while_loop(cond, body, (x, *_score(p, x), jnp.zeros((), jnp.int32)))
+    start = (x, jnp.zeros(2, x.dtype), jnp.zeros(p.n_con, x.dtype), jnp.zeros((), jnp.int32))
+    x, F, G, _ = jax.lax.while_loop(cond, body, start)
     return x, F, G, jnp.all(G <= 0) & ~failed(x, G)
 
 
@@ -234,11 +237,12 @@ def _unit(p: DockingProblem, x, top_interval):
     return jnp.clip((x - p.lower) / (p.upper - p.lower), 0.0, top), top
 
 
-def _lane(p: DockingProblem, x0, time_weight, cap, limit):
+def _lane(p: DockingProblem, x0, time_weight, cap, limit, target):
     """One programme from x0 by at most ``limit`` SQP iterations (0: x0 as it is), its answer
     certified (:func:`_certified`): shortest time (``time_weight`` 1, ``cap`` unused) or least
-    jerk (0) with ``T <= cap``. → ``(x, F, G, ok, iterations)`` of the better certified of
-    the answer and x0."""
+    jerk (0) with ``T <= cap``. ``target`` > 0 (s): the answer and x0 are first time-scaled
+    to exactly that T, and only a certified trajectory of exactly that T is ``ok``. →
+    ``(x, F, G, ok, iterations)`` of the better certified of the answer and x0."""
     n = p.n_intervals
     u0, top = _unit(p, x0, jnp.where(time_weight > 0, TOP, FRONT_TOP))
     scale = jnp.where(time_weight > 0, jnp.sum(x0[:n]), jnp.maximum(solve._jerk(p, x0), 1e-12))
@@ -259,10 +263,17 @@ def _lane(p: DockingProblem, x0, time_weight, cap, limit):
     state = sqp.init(u0, m, sqp.positive_definite(jax.hessian(objective)(u0)))
     state = jax.lax.while_loop(lambda st: (st.k < limit) & ~st.done,
                                lambda st: sqp.step(st, values, primal, a, b, top, PARAMS), state)
-    # the answer and the start, each certified; the better one certified (an answer the
-    # certificate cannot slow into the box, e.g. one left a little infeasible by the
-    # iteration limit with intervals at their upper bounds, falls back on the start)
-    x, F, G, ok = jax.vmap(lambda x: _certified(p, x))(jnp.stack([solve._x_of(p, state.u), x0]))
+    # the answer and the start (each first slowed or sped up to exactly ``target`` when one
+    # is given), each certified; the better one certified (an answer the certificate cannot
+    # slow into the box, e.g. one left a little infeasible by the iteration limit with
+    # intervals at their upper bounds, falls back on the start)
+    xs = jnp.stack([solve._x_of(p, state.u), x0])
+    timed = target > 0
+    factor = jnp.where(timed, target / jnp.sum(xs[:, :n], axis=1), 1.0)
+    xs = xs.at[:, :n].set(jnp.minimum(xs[:, :n] * factor[:, None], p.upper[:n]))
+    x, F, G, ok = jax.vmap(lambda x: _certified(p, x))(xs)
+    # of a duration: no interval cut at its bound, none slowed further by the certificate
+    ok = ok & (~timed | (jnp.abs(jnp.sum(x[:, :n], axis=1) - target) <= 1e-9 * target))
     f = jnp.where(time_weight > 0, F[:, 0], F[:, 1])
     i = jnp.where(ok[0] & (~ok[1] | (f[0] <= f[1])), 0, 1)
     return x[i], F[i], G[i], ok[i], state.k
@@ -308,7 +319,9 @@ def _move(p: DockingProblem, weights, duration, n_front: int):
         scaled = jnp.where((timed & ~first)[:, None], _line(p, duration), scaled)
         x0 = jnp.where(s == 0, line, jnp.where(s == 1, short[0], scaled))
         limit = jnp.where(s == 0, 0, jnp.where(s == 1, jnp.where(first, PARAMS.max_iter, 0), FRONT_ITER))
-        out = jax.vmap(_lane, in_axes=(None, 0, None, 0, 0))(p, x0, jnp.where(s == 2, 0.0, 1.0), caps, limit)
+        target = jnp.where((s == 2) & timed, duration, 0.0)
+        out = jax.vmap(_lane, in_axes=(None, 0, None, 0, 0, None))(p, x0, jnp.where(s == 2, 0.0, 1.0), caps, limit,
+                                                                   target)
         lane0 = jax.tree.map(lambda a: a[0], out[:4])
         new = jax.tree.map(lambda a, b, c: jnp.where(s == 0, a, jnp.where(s == 1, b, c)),
                            lane0, _better(lane0, short), short)
@@ -326,19 +339,14 @@ def _move(p: DockingProblem, weights, duration, n_front: int):
     head = jax.tree.map(lambda a, b: jnp.where(keep, a, b), smooth, short)
     X, F, G, ok = (jnp.concatenate([h[None], v[1:]]) for h, v in zip(head, sols))
     j = _choose(F, weights, ok)
-    # of a duration: every lane's answer and the shortest-time trajectory slowed to exactly
-    # the duration (exact time scaling lowers every rate), the least jerk of those certified
-    cand = jax.tree.map(lambda a, b: jnp.concatenate([a, b[None]]), sols, short)
-    factor = duration / cand[1][:, 0]
-    xs = cand[0].at[:, :n].multiply(factor[:, None])
-    xs = xs.at[:, :n].set(jnp.minimum(xs[:, :n], p.upper[:n]))
-    Fd, Gd = jax.vmap(lambda x: _score(p, x))(xs)
-    exact = jnp.abs(jnp.sum(xs[:, :n], axis=1) - duration) <= 1e-9 * duration  # no interval cut at its bound
-    okd = cand[3] & (factor >= 1.0) & exact & jnp.all(Gd <= 0, axis=1) & short[3]
-    i = jnp.argmin(jnp.where(okd, Fd[:, 1], jnp.inf))
+    # of a duration: every lane's answer (or start) time-scaled to exactly the duration and
+    # certified there, the first lane's start being the shortest-time trajectory slowed to it;
+    # the least jerk of those
+    okd = sols[3] & short[3]
+    i = jnp.argmin(jnp.where(okd, sols[1][:, 1], jnp.inf))
     pick = lambda a, b: jnp.where(timed, a, b)  # noqa: E731
-    return dict(x=pick(xs[i], X[j]), F=pick(Fd[i], F[j]), ok=pick(okd[i], ok[j]), T_min=T_min,
-                front=pick(cand[1][:-1], F), front_ok=pick(cand[3][:-1], ok), chosen=pick(-1, j), iterations=iters,
+    return dict(x=pick(sols[0][i], X[j]), F=pick(sols[1][i], F[j]), ok=pick(okd[i], ok[j]), T_min=T_min,
+                front=pick(sols[1], F), front_ok=pick(okd, ok), chosen=pick(-1, j), iterations=iters,
                 cap_iterations=cap_iters)
 
 

@@ -26,7 +26,9 @@ A call whose key cannot be formed this way (an argument that is a tracer, an arr
 another device, a static field of another type) goes through ``jax.jit`` as usual. So
 does every call when the store is off (``$DOCKJAX_PROGRAMS=off``). A file that cannot be
 read or loaded is compiled again and replaced; one that cannot be written (a read-only
-folder) is skipped: the store only ever saves time. It keeps within :data:`MAX_BYTES`,
+folder) is skipped: the store only ever saves time. Processes that need the same new
+program at once compile it once: the others wait for it (a lock file beside it) and load
+it. The program compiled in a call is checked and gives that call's result (one run). It keeps within :data:`MAX_BYTES`,
 removing the files least recently saved or loaded. Files are written whole (a temporary
 file renamed into place), so concurrent processes never read a partial one. The files are
 pickles: the folder is trusted as the Python path is (by default it is in the user's own
@@ -37,6 +39,7 @@ A :class:`dockjax.plan.Planner` keeps its template there too (:func:`dockjax.pla
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import functools
 import hashlib
@@ -47,6 +50,7 @@ from pathlib import Path
 from typing import Callable
 
 import jax
+import jax.numpy as jnp
 import jaxlib
 import numpy as np
 from jax._src import config as jax_config  # JAX's own trace key (:func:`_trace_options`); no public API has it
@@ -171,32 +175,67 @@ class StoredFunction:
         memo = (static, tree, avals, jax_config.trace_context())
         program = self._loaded.get(memo)
         if program is None:
-            program = self._program(args, static, tree, avals)
-            if program is None:
+            found = self._program(args, static, tree, avals)
+            if found is None:
                 return self.jitted(*args)
+            program, result = found
             self._loaded[memo] = program
+            if result is not None:  # computed while the program was checked before saving
+                return result
         return program(*dynamic)
 
     def _program(self, args, static, tree, avals):
-        """The compiled program of this call: from the store, else compiled and saved.
-        None when the call's key cannot be formed (the store is off, or a static value or
-        static field is not a plain value)."""
+        """The compiled program of this call and, when it was compiled here, its result on
+        this call's arguments (else None): from the store, else compiled and saved. None
+        when the call's key cannot be formed (the store is off, or a static value or static
+        field is not a plain value). While one process compiles a program, another that
+        wants the same one waits for it and loads it (a lock file beside it), rather than
+        compiling it too."""
         where = folder()
         if where is None or not _simple(static) or not _structure_ok(tree):
             return None
         name = key(self.fun, static, tree, avals)
         path = where / f"{name}.program"
         try:
-            return _load(path, name)
+            return _load(path, name), None
         except Exception:  # absent, damaged, or from another version: compile anew
             pass
-        lowered = self.jitted.lower(*args)
-        if jax.config.jax_compilation_cache_dir:  # compiled afresh, not loaded from JAX's cache (NONCE_OPTION)
-            compiled = lowered.compile(compiler_options={NONCE_OPTION: time.time_ns() % 1_000_000 + 16})
-        else:
-            compiled = lowered.compile()
-        _save(path, name, compiled, dynamic=tuple(a for i, a in enumerate(args) if i not in self.static_argnums))
-        return compiled
+        with _compiling(path):
+            try:  # saved by another process meanwhile
+                return _load(path, name), None
+            except Exception:
+                pass
+            lowered = self.jitted.lower(*args)
+            if jax.config.jax_compilation_cache_dir:  # compiled afresh, not loaded from JAX's cache (NONCE_OPTION)
+                compiled = lowered.compile(compiler_options={NONCE_OPTION: time.time_ns() % 1_000_000 + 16})
+            else:
+                compiled = lowered.compile()
+            dynamic = tuple(a for i, a in enumerate(args) if i not in self.static_argnums)
+            return compiled, _save(path, name, compiled, dynamic)
+
+
+@contextlib.contextmanager
+def _compiling(path: Path):
+    """Hold an exclusive lock on ``path``'s lock file (``<key>.lock``, created as needed)
+    for as long as the program is being compiled and saved. No lock where the folder
+    cannot be written or the platform has no ``fcntl``: then two processes may both
+    compile, and the second file written replaces the first (each is whole)."""
+    handle = None
+    try:
+        import fcntl
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(path.with_suffix(".lock"), "a")
+        fcntl.flock(handle, fcntl.LOCK_EX)
+    except (ImportError, OSError):
+        if handle is not None:
+            handle.close()
+        handle = None
+    try:
+        yield
+    finally:
+        if handle is not None:
+            handle.close()  # releases the lock
 
 
 NONCE_OPTION = "xla_debug_buffer_assignment_show_max"
@@ -215,9 +254,21 @@ def _load(path: Path, name: str):
     payload, in_tree, out_tree = record["program"]
     if (record["format"], record["key"], record["sha256"]) != (FORMAT, name, hashlib.sha256(payload).hexdigest()):
         raise ValueError(f"{path} is not the program {name}")
+    _prepare_linear_algebra()
     program = serialize_executable.deserialize_and_load(payload, in_tree, out_tree, execution_devices=_device())
     touch(path)
     return program
+
+
+@functools.cache
+def _prepare_linear_algebra() -> None:
+    """Set up the process's linear algebra routines before a program is loaded. On the CPU,
+    a compiled program calls LAPACK (a Cholesky factorisation, an eigendecomposition) through
+    function pointers that jaxlib sets when the process first lowers such an operation; a
+    program loaded from the store is not lowered, and would call unset pointers (a
+    segmentation fault). Lowering one small Cholesky factorisation sets them (nothing is
+    compiled); on other platforms it does no harm."""
+    jax.jit(jnp.linalg.cholesky).lower(jnp.eye(2))
 
 
 def touch(path: Path) -> None:
@@ -244,27 +295,31 @@ def prune(where: Path) -> None:
         if total <= MAX_BYTES:
             break
         path.unlink(missing_ok=True)
+        path.with_suffix(".lock").unlink(missing_ok=True)
         total -= size
 
 
-def _save(path: Path, name: str, compiled, dynamic: tuple) -> None:
+def _save(path: Path, name: str, compiled, dynamic: tuple):
     """Write ``compiled`` to ``path`` (under the key ``name``, with its payload's digest)
     once a copy loaded from the bytes computes, on the call's own arguments ``dynamic``, bit
     for bit what ``compiled`` does (anything else, or a folder that cannot be written, and
-    nothing is saved)."""
+    nothing is saved). → ``compiled``'s result on ``dynamic`` when it was computed, else None."""
+    result = None
     try:
         payload, in_tree, out_tree = serialize_executable.serialize(compiled)
         data = pickle.dumps({"format": FORMAT, "key": name, "sha256": hashlib.sha256(payload).hexdigest(),
                              "program": (payload, in_tree, out_tree)})
         copy = serialize_executable.deserialize_and_load(*pickle.loads(data)["program"], execution_devices=_device())
-        want, got = jax.tree.leaves(compiled(*dynamic)), jax.tree.leaves(copy(*dynamic))
+        result = compiled(*dynamic)
+        want, got = jax.tree.leaves(result), jax.tree.leaves(copy(*dynamic))
         if len(want) != len(got) or not all(_same_bits(a, b) for a, b in zip(want, got)):
-            return
+            return result
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, lambda fh: fh.write(data))
         prune(path.parent)
     except Exception:  # an executable that does not serialise, a read-only folder, a full disk
         pass
+    return result
 
 
 def _device() -> list:

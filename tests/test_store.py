@@ -90,6 +90,30 @@ def test_a_program_is_saved_once_and_loaded_bit_for_bit(folder):
     _equal(fresh(other, x), jax.jit(_kernel)(other, x))
 
 
+def test_a_program_another_process_is_compiling_is_waited_for_and_loaded(folder):
+    import fcntl
+    import threading
+
+    spec, x = _Spec(np.array([1.0, 2.0, 3.0])), np.linspace(0.1, 2.0, 3)
+    out = store.stored_jit(_kernel)(spec, x)
+    (name,) = _files(folder)
+    program = folder / name
+    saved = program.read_bytes()
+    program.unlink()
+    fresh = store.stored_jit(_kernel)  # a new process: nothing loaded, and it must not compile
+    fresh.__dict__["jitted"] = _NoCompile()
+    got = {}
+    with open(program.with_suffix(".lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # another process is compiling the program
+        waiter = threading.Thread(target=lambda: got.update(out=fresh(spec, x)))
+        waiter.start()
+        waiter.join(1.0)
+        assert waiter.is_alive(), "did not wait for the program being compiled"
+        program.write_bytes(saved)  # ... and saves it
+    waiter.join(60)
+    _equal(got["out"], out)
+
+
 def test_whatever_decides_the_program_gives_another_key(folder, monkeypatch):
     spec, x = _Spec(np.ones(3)), np.linspace(0.1, 2.0, 3)
     f = store.stored_jit(_kernel)
@@ -244,6 +268,45 @@ def test_a_new_process_loads_the_kernels_program_instead_of_compiling(folder, tm
     with jax.enable_x64(True):
         here = np.array([float(solve._jerk_value.jitted(problem, xi)) for xi in x])
     np.testing.assert_array_equal(first, here)
+
+
+LINALG_SCRIPT = r"""
+import sys
+import jax
+import jax.numpy as jnp
+import numpy as np
+from dockjax import store
+
+def factor(a):  # XLA:CPU calls LAPACK for both
+    return jnp.linalg.cholesky(a @ a.T + jnp.eye(a.shape[0])), jnp.linalg.eigh(a + a.T)[0]
+
+f = store.stored_jit(factor)
+if sys.argv[2] == "load":
+    class NoCompile:
+        def lower(self, *a):
+            raise SystemExit("compiled instead of loaded")
+        __call__ = lower
+    f.__dict__["jitted"] = NoCompile()
+a = np.random.default_rng(3).normal(size=(5, 5))
+np.save(sys.argv[1], np.concatenate([np.ravel(v) for v in f(a)]))
+"""
+
+
+def test_a_new_process_loads_and_runs_a_program_that_calls_lapack(folder, tmp_path):
+    """A program with a Cholesky factorisation and an eigendecomposition (as the batched
+    planner's SQP has) compiled in one process runs in the next, loaded without lowering,
+    bit for bit alike (such a program once crashed the loading process). Reference: NumPy's
+    LAPACK on the same matrices."""
+    env = {**os.environ, "DOCKJAX_PROGRAMS": str(folder)}
+    for name, mode in (("first", "compile"), ("second", "load")):
+        r = subprocess.run([sys.executable, "-c", LINALG_SCRIPT, str(tmp_path / f"{name}.npy"), mode], env=env,
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, f"{mode}: exit code {r.returncode}\n{r.stderr[-3000:]}"
+    first, second = np.load(tmp_path / "first.npy"), np.load(tmp_path / "second.npy")
+    np.testing.assert_array_equal(second, first)
+    a = np.random.default_rng(3).normal(size=(5, 5)).astype(np.float32)
+    want = np.concatenate([np.linalg.cholesky(a @ a.T + np.eye(5)).ravel(), np.linalg.eigvalsh(a + a.T)])
+    np.testing.assert_allclose(first, want, rtol=1e-4, atol=1e-4)
 
 
 def test_a_planners_template_is_saved_and_loaded_bit_for_bit(tmp_path, monkeypatch):
