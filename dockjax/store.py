@@ -58,6 +58,11 @@ from jax.experimental import serialize_executable
 
 from .io import atomic_write
 
+try:  # POSIX file locks (:func:`_compiling`); elsewhere the store works without them
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
+
 __all__ = ["stored_jit", "StoredFunction", "folder", "key", "source_digest", "touch", "prune", "MAX_BYTES",
            "PROGRAMS_OFF"]
 
@@ -221,16 +226,15 @@ def _compiling(path: Path):
     cannot be written or the platform has no ``fcntl``: then two processes may both
     compile, and the second file written replaces the first (each is whole)."""
     handle = None
-    try:
-        import fcntl
-
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle = open(path.with_suffix(".lock"), "a")
-        fcntl.flock(handle, fcntl.LOCK_EX)
-    except (ImportError, OSError):
-        if handle is not None:
-            handle.close()
-        handle = None
+    if fcntl is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            handle = open(path.with_suffix(".lock"), "a")
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except OSError:
+            if handle is not None:
+                handle.close()
+            handle = None
     try:
         yield
     finally:
