@@ -6,13 +6,15 @@ one JAX program, vmapped over the moves: per move
 1. the straight line at the shortest T the box allows, slowed until the kernel certifies
    it (exact time scaling, :func:`_certified`): the start;
 2. the shortest-time programme by the batched SQP (:mod:`dockjax.sqp`) with the kernel's
-   constraints at their critical times (:func:`dockjax.solve.candidate_limits`), its answer
-   certified; T_min;
+   constraints at their critical times (:func:`dockjax.solve.candidate_limits`), from the
+   start and from variants of it with the knot intervals redistributed (:func:`_time_starts`),
+   each answer certified; T_min the shortest;
 3. the least-jerk programme at the time caps of :func:`dockjax.plan.plan`'s front (T_min,
    then ``n_front`` caps geometrically spaced up to the longest T), each from the shortest-
    time trajectory slowed to its cap, all solved at once and each answer certified;
 4. the front point of best weighted satisfaction (Eq. 26), or with a duration the least-jerk
-   certified trajectory of exactly that duration.
+   certified trajectory of exactly that duration (each programme's answer, and its start,
+   time-scaled to it and certified there).
 
 "Certified" is the kernel's rigorous maxima of every span through the root chain
 (``screen=False``; the right arm treated as ``problem`` treats it): never below the true
@@ -38,10 +40,13 @@ from .problem import DockingProblem, _control_box, score_batch
 from .solve import PlanError
 from .store import stored_jit
 
-__all__ = ["BatchPlan", "plan_batch", "stack_moves", "single", "PARAMS", "FRONT_ITER"]
+__all__ = ["BatchPlan", "plan_batch", "stack_moves", "single", "PARAMS", "START_ITER", "FRONT_ITER"]
 
 PARAMS = sqp.Params(max_iter=80)
 """SQP settings; ``max_iter``: most iterations of the shortest-time programme."""
+START_ITER = 25
+"""Most SQP iterations of the shortest-time programme from the other starts than the
+straight line (:func:`_time_starts`; it converges in 10-20 from most)."""
 FRONT_ITER = 60
 """Most SQP iterations of each least-jerk programme of the front (as many as
 :data:`dockjax.plan.FRONT_ITER`)."""
@@ -91,6 +96,11 @@ class BatchPlan:
 
     def __len__(self) -> int:
         return len(self.T)
+
+    def __repr__(self) -> str:
+        T = self.T[self.feasible]
+        span = f", T from {T.min():.4g} to {T.max():.4g} s" if T.size else ""
+        return f"BatchPlan({len(self)} moves, {int(self.feasible.sum())} feasible{span}, n_var={self.x.shape[1]})"
 
     def move(self, i: int) -> DockingProblem:
         """Move ``i`` as a single, validated :class:`DockingProblem`."""
@@ -279,6 +289,24 @@ def _lane(p: DockingProblem, x0, time_weight, cap, limit, target):
     return x[i], F[i], G[i], ok[i], state.k
 
 
+def _time_starts(p: DockingProblem, x, lanes: int):
+    """``lanes`` starts of the shortest-time programme: x (the certified straight line), then
+    x with the same duration and control points but its knot intervals redistributed, more
+    time at the ends of the move (odd lanes) or in its middle (even lanes), more so lane by
+    lane (clipped to the interval bounds). The time programme's answer depends on its start;
+    the lanes solve it from all of them at no extra cost (a vmapped loop runs its lanes for
+    as long as its slowest)."""
+    n = p.n_intervals
+    k = jnp.arange(lanes)[:, None]
+    c = (n - 1) / 2.0
+    shape = ((jnp.arange(n) - c) / max(c, 1.0)) ** 2  # 0 in the middle, 1 at the ends
+    a = jnp.where(k % 2 == 1, 2.0, -0.5) * k / max(lanes - 1, 1)
+    w = 1.0 + a * shape
+    h = jnp.sum(x[:n]) * w / jnp.sum(w, axis=1, keepdims=True)
+    h = jnp.where(k == 0, x[:n], jnp.clip(h, p.lower[:n], p.upper[:n]))
+    return jnp.broadcast_to(x, (lanes, x.shape[0])).at[:, :n].set(h)
+
+
 def _better(new, old):
     """The certified one of two ``(x, F, G, ok)`` with the shorter time."""
     take = new[3] & (~old[3] | (new[1][0] < old[1][0]))
@@ -294,9 +322,11 @@ def _move(p: DockingProblem, weights, duration, n_front: int):
     The three steps run as one ``lax.scan`` over stages of one body (one compiled SQP and one
     certificate, however many stages): each stage solves ``n_front + 1`` programmes at once;
     the first certifies the straight line (no SQP), the second solves the shortest-time
-    programme in its first lane, the third the least-jerk programme at every cap of the
-    front, or at the duration from the shortest-time trajectory slowed to it (first lane)
-    and from the straight line of that duration (the others)."""
+    programme in every lane, from the certified line and its variants
+    (:func:`_time_starts`), and keeps the shortest certified answer, the third the
+    least-jerk programme at every cap of the front, or at the duration from the
+    shortest-time trajectory slowed to it (first lane) and from the straight line of that
+    duration (the others)."""
     n = p.n_intervals
     lanes = n_front + 1
     longest = n * p.interval_bounds[1]
@@ -317,20 +347,24 @@ def _move(p: DockingProblem, weights, duration, n_front: int):
         scaled = jnp.broadcast_to(short[0], (lanes, short[0].shape[0]))
         scaled = scaled.at[:, :n].set(jnp.minimum(scaled[:, :n] * (caps / T_min)[:, None], p.upper[:n]))
         scaled = jnp.where((timed & ~first)[:, None], _line(p, duration), scaled)
-        x0 = jnp.where(s == 0, line, jnp.where(s == 1, short[0], scaled))
-        limit = jnp.where(s == 0, 0, jnp.where(s == 1, jnp.where(first, PARAMS.max_iter, 0), FRONT_ITER))
+        x0 = jnp.where(s == 0, line, jnp.where(s == 1, _time_starts(p, short[0], lanes), scaled))
+        limit = jnp.where(s == 0, 0, jnp.where(s == 1, jnp.where(first, PARAMS.max_iter, START_ITER), FRONT_ITER))
         target = jnp.where((s == 2) & timed, duration, 0.0)
         out = jax.vmap(_lane, in_axes=(None, 0, None, 0, 0, None))(p, x0, jnp.where(s == 2, 0.0, 1.0), caps, limit,
                                                                    target)
         lane0 = jax.tree.map(lambda a: a[0], out[:4])
+        # the shortest certified time of the lanes (stage 1 solves the time programme in
+        # every lane, each from its own start)
+        k = jnp.argmin(jnp.where(out[3], out[1][:, 0], jnp.inf))
+        best = jax.tree.map(lambda a: a[k], out[:4])
         new = jax.tree.map(lambda a, b, c: jnp.where(s == 0, a, jnp.where(s == 1, b, c)),
-                           lane0, _better(lane0, short), short)
-        return new, out
+                           lane0, _better(best, short), short)
+        return new, (*out, k)
 
     empty = (line, jnp.zeros(2, line.dtype), jnp.zeros(p.n_con, line.dtype), jnp.zeros((), bool))
     short, outs = jax.lax.scan(stage, empty, jnp.arange(3))
     sols = jax.tree.map(lambda a: a[2], outs[:4])
-    iters, cap_iters = outs[4][1, 0], outs[4][2]
+    iters, cap_iters = outs[4][1, outs[5][1]], outs[4][2]
     T_min = short[1][0]
     # by weights: the time-optimal trajectory is the front's first point, smoothed where the
     # first cap found less jerk; the choice of Eq. 26

@@ -538,9 +538,13 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
     adds jerk). Every answer, and every start the kernel certifies, is slowed to exactly
     ``T`` by exact time scaling (at least 1: a hair, as a solve stops a hair inside its
     cap), which lowers every rate and the jerk; the lowest jerk wins, so the answer is never
-    jerkier than a certified start. None when nothing certified takes at most ``T``."""
-    certified = (solve.certify_scaling(problem, x) for x in starts)
+    jerkier than a certified start. The straight line of duration ``T`` counts as a start
+    (where the others slowed to ``T`` would cut an interval at its upper bound, it may fit).
+    None when nothing certified takes exactly ``T``."""
+    line = solve.straight_line(problem, T)[0]
+    certified = (solve.certify_scaling(problem, x) for x in [*starts, line])
     exact = [_exactly(problem, solve.kept_start(problem, c), T) for c in certified if c is not None and c[1][0] <= T]
+    exact = [s for s in exact if _takes(s, T)]
     start_jerk = min((s.F[1] for s in exact), default=np.inf)
     cap, tried = T, list(starts)
     for _ in range(3):
@@ -554,9 +558,14 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
             break
         cap *= T / sol.F[0]
         tried = [sol.x]
-    # certified, and of exactly T: slowing cuts an interval at its upper bound, a shorter trajectory
-    exact = [s for s in exact if np.all(s.G <= 0) and abs(s.F[0] - T) <= 1e-9 * T]
+    exact = [s for s in exact if _takes(s, T)]
     return min(exact, key=lambda s: s.F[1]) if exact else None
+
+
+def _takes(sol: solve.Solution, T: float) -> bool:
+    """Whether ``sol`` is certified and takes exactly ``T`` (slowing it to ``T`` may have cut
+    an interval at its upper bound, leaving it shorter)."""
+    return bool(np.all(sol.G <= 0)) and abs(sol.F[0] - T) <= 1e-9 * T
 
 
 def _exactly(problem: DockingProblem, sol: solve.Solution, T: float) -> solve.Solution:

@@ -304,6 +304,9 @@ class DockingProblem:
 
     def __repr__(self) -> str:
         f = lambda a: "(" + ", ".join(f"{v:g}" for v in np.ravel(a)) + ")"  # noqa: E731
+        if np.ndim(self.start) != 1:  # leaves with a batch axis (dockjax.bulk.stack_moves)
+            return (f"DockingProblem(batch of {np.shape(self.start)[0]} moves, "
+                    f"{f'n_control={self.n_control}, ' if self.n_control != config.N_FREE else ''}n_var={self.n_var})")
         return (
             f"DockingProblem(start={f(self.start)}, goal={f(self.goal)}, "
             f"arm_distance={self.arm_distance:g}, interval_bounds={self.interval_bounds}, "

@@ -84,6 +84,13 @@ def test_the_feasible_moves_are_planned_and_the_impossible_one_is_not(batches):
     assert np.all(by_weights.T_min[:3] >= floors[:3] * (1 - 1e-9))
 
 
+def test_a_batch_and_its_problem_print_in_one_short_line(batches):
+    by_weights, _ = batches
+    text = repr(by_weights)
+    assert text.startswith("BatchPlan(4 moves, 3 feasible, T from ") and len(text) < 120
+    assert repr(by_weights.problem) == "DockingProblem(batch of 4 moves, n_var=36)"
+
+
 def test_every_plan_passes_the_dense_check(batches):
     for result in batches:
         for i in np.flatnonzero(result.feasible):
