@@ -37,7 +37,7 @@ from .solve import floor_infeasibility, infeasibility, least_jerk_front, shortes
 __all__ = ["FrontResult", "best_known_front", "best_known_key", "best_known_cached",
            "fronts_cache", "reference_point", "BEST_KNOWN_FORMAT"]
 
-BEST_KNOWN_FORMAT = 3
+BEST_KNOWN_FORMAT = 4
 """Version of the best-known front's computation: part of the key of a cached front."""
 
 
@@ -63,15 +63,21 @@ class FrontResult:
 
 
 def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: int = 20, line: bool = False,
-                     steps: int = 600, learning_rate: float = 0.05, penalty: float = 10.0, margin: float = 1e-4,
-                     rows: int | None = None, progress: bool = False) -> FrontResult:
+                     anchor_iter: int = 60, anchor_restarts: int = 0,
+                     steps: int = 600, learning_rate: float = 0.05, penalty: float = 10.0,
+                     margin: float = 1e-4, rows: int | None = None, progress: bool = False) -> FrontResult:
     """An ε-constraint sweep of T from the shortest feasible time to ``(n + 1) h_hi`` (the
     longest T; ``6 h_hi`` in the paper's family).
 
     1. The shortest time, and the least jerk at ``n_exact`` caps from it to the longest T
        (quadratically spaced: dense where the front is steep), by sequential quadratic
        programming (:func:`dockjax.solve.shortest`, :func:`dockjax.solve.least_jerk_front`;
-       by continuation, and with ``line`` from the straight line too): the anchors.
+       by continuation, and with ``line`` from the straight line too), each anchor's solve
+       stopped after ``anchor_iter`` SLSQP iterations and ``anchor_restarts`` restarts
+       (:func:`dockjax.solve.min_jerk`): the anchors. Step 2 polishes from them, so fully
+       converged anchors are not needed (``python benchmarks/bench_refine.py`` compares
+       the defaults with anchors solved to 200 iterations and 3 restarts, time and
+       hypervolume, on the paper and wide presets).
     2. ``n_points`` caps evenly spaced over the same range, each started from the anchor
        just below it slowed to the cap (feasible, by exact time scaling) and polished in one
        batch by :func:`dockjax.refine.polish` (``steps``, ``learning_rate``, ``penalty``,
@@ -87,14 +93,16 @@ def best_known_front(problem: DockingProblem, *, n_points: int = 150, n_exact: i
     check_settings(problem, steps, learning_rate, penalty, margin, rows)
     checks.integer("n_points", n_points, 2)
     checks.integer("n_exact", n_exact, 2)
+    checks.integer("anchor_iter", anchor_iter, 1)
+    checks.integer("anchor_restarts", anchor_restarts, 0)
     t0 = time.perf_counter()
     with tqdm(total=int(n_exact) + 2, desc="best-known front", unit="step", disable=not progress, file=sys.stderr,
               leave=False) as bar:
-        return _best_known_front(problem, int(n_points), int(n_exact), line, steps, learning_rate, penalty, margin,
-                                 rows, bar, t0)
+        return _best_known_front(problem, int(n_points), int(n_exact), line, (int(anchor_iter), int(anchor_restarts)),
+                                 steps, learning_rate, penalty, margin, rows, bar, t0)
 
 
-def _best_known_front(problem, n_points, n_exact, line, steps, learning_rate, penalty, margin, rows, bar, t0):
+def _best_known_front(problem, n_points, n_exact, line, anchor, steps, learning_rate, penalty, margin, rows, bar, t0):
     n = problem.n_intervals
     if (floor := floor_infeasibility(problem)) is not None:
         raise floor
@@ -106,7 +114,8 @@ def _best_known_front(problem, n_points, n_exact, line, steps, learning_rate, pe
     bar.set_postfix_str("SQP anchors")
     t_max = n * problem.interval_bounds[1]
     caps = fastest.F[0] + (t_max - fastest.F[0]) * np.linspace(0.0, 1.0, n_exact + 1)[1:] ** 2
-    anchors = [fastest] + least_jerk_front(problem, fastest, caps, line=line, on_cap=bar.update)
+    anchors = [fastest] + least_jerk_front(problem, fastest, caps, line=line, max_iter=anchor[0], restarts=anchor[1],
+                                                 on_cap=bar.update)
     bar.set_postfix_str(f"refining {n_points} caps")
     TA = np.array([a.F[0] for a in anchors])
     XA = np.array([a.x for a in anchors])
@@ -162,7 +171,7 @@ def best_known_cached(problem: DockingProblem, path=None, log: Callable[[str], N
             log(f"best-known front: {path} is damaged; computed again")
     options = {**config.BEST_KNOWN, **settings}
     log(f"best-known front: computing ({options['n_exact']} SQP anchors, {options['n_points']} refined time caps; "
-        "about a minute, once per problem)")
+        "seconds to a minute, once per problem)")
     front = best_known_front(problem, **options, progress=progress)
     log(f"best-known front: {len(front.F)} points in {front.seconds:.1f} s (compile included)")
     if path is not None:

@@ -8,8 +8,9 @@ solves the sub-problem
 
 with Adam (optax) from the point itself. The whole batch is one parameter array: Adam is
 per-coordinate, so summing the per-point losses gives n independent optimisations, run
-by one jitted ``lax.fori_loop`` (the trip count is traced: changing ``steps`` does not
-recompile).
+by one compiled ``lax.fori_loop`` (the trip count is traced: changing ``steps`` does not
+recompile), kept in the store of compiled programs (:mod:`dockjax.store`), so a new process
+loads it.
 
 * The variables live in the unit box, ``x = lower + u (upper − lower)``.
 * The box and the time cap ``T ≤ T_i`` are kept by exact Euclidean projection after every
@@ -55,6 +56,7 @@ from .decoding import spans
 from .limits import columns, maxima, maxima_screened
 from .objectives import jerk
 from .problem import DockingProblem, bucket_rows, pad_rows
+from .store import stored_jit
 
 __all__ = ["RefineResult", "refine", "polish", "check_settings", "objectives_safe"]
 
@@ -138,11 +140,15 @@ def _project(U, width_h, cap, n_bisect: int = 60):
 # -- the polishing loop ---------------------------------------------------------------------
 
 
-@jax.jit
-def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_best0, x_best0, f_best0, g_best0):
+@stored_jit
+def _polish(problem, settings, rows):
     """Projected Adam on all rows of U0 (n, d) at once; returns the best qualifying iterate
     per row (initialised with ``*_best0``; a candidate qualifies when kernel-feasible, with
-    ``T ≤ cap_T`` and jerk < the incumbent)."""
+    ``T ≤ cap_T`` and jerk < the incumbent). ``settings`` ``(steps, lr, lr_final, mu, rho,
+    margin)`` (scalars); ``rows`` ``(U0, cap, j_scale, j_best0, x_best0, f_best0, g_best0)``,
+    each with n rows. Row-wise: a row's result does not depend on the others."""
+    steps, lr, lr_final, mu, rho, margin = settings
+    U0, cap, j_scale, j_best0, x_best0, f_best0, g_best0 = rows
     lo = jnp.asarray(problem.lower, U0.dtype)
     width = jnp.asarray(problem.upper, U0.dtype) - lo
     width_h = width[: problem.n_intervals]
@@ -189,7 +195,12 @@ def _polish(problem, U0, cap, j_scale, steps, lr, lr_final, mu, rho, margin, j_b
 
 
 _CHUNK = 256
-_score_rows = jax.jit(jax.vmap(objectives_safe, in_axes=(None, 0)))
+
+
+@stored_jit
+def _score_rows(problem, X):
+    """:func:`objectives_safe` of every row of X (n, n_var) → F (n, 2), G (n, n_con)."""
+    return jax.vmap(objectives_safe, in_axes=(None, 0))(problem, X)
 
 
 def check_settings(problem, steps, learning_rate, penalty, margin, rows=None) -> None:
@@ -238,12 +249,12 @@ def _polish_chunk(problem, X, cap, size, steps, learning_rate, penalty, margin):
         j0 = np.where(feas0, F0[:, 1], np.inf)
         lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
         U0 = np.clip((X - lo) / (hi - lo), 0.0, 1.0)
-        out = _polish(
-            problem, jnp.asarray(U0), jnp.asarray(cap), jnp.asarray(j_scale), jnp.asarray(int(steps)),
-            jnp.asarray(float(learning_rate)), jnp.asarray(0.01 * float(learning_rate)),
-            jnp.asarray(float(penalty)), jnp.asarray(10.0 * float(penalty)), jnp.asarray(float(margin)),
-            jnp.asarray(j0), Xj, jnp.asarray(F0), jnp.asarray(G0),
-        )
+        rate = float(learning_rate)
+        mu = float(penalty)
+        settings = tuple(jnp.asarray(v) for v in (int(steps), rate, 0.01 * rate, mu, 10.0 * mu, float(margin)))
+        rows = (jnp.asarray(U0), jnp.asarray(cap), jnp.asarray(j_scale), jnp.asarray(j0), Xj, jnp.asarray(F0),
+                jnp.asarray(G0))
+        out = _polish(problem, settings, rows)
     return tuple(np.asarray(a)[:n] for a in out)
 
 

@@ -28,7 +28,8 @@ does every call when the store is off (``$DOCKJAX_PROGRAMS=off``). A file that c
 read or loaded is compiled again and replaced; one that cannot be written (a read-only
 folder) is skipped: the store only ever saves time. Processes that need the same new
 program at once compile it once: the others wait for it (a lock file beside it) and load
-it. The program compiled in a call is checked and gives that call's result (one run). It keeps within :data:`MAX_BYTES`,
+it. The program compiled in a call is checked and gives that call's result (one run); a
+program laid out on several devices is run but not kept. It keeps within :data:`MAX_BYTES`,
 removing the files least recently saved or loaded. Files are written whole (a temporary
 file renamed into place), so concurrent processes never read a partial one. The files are
 pickles: the folder is trusted as the Python path is (by default it is in the user's own
@@ -309,6 +310,8 @@ def _save(path: Path, name: str, compiled, dynamic: tuple):
     for bit what ``compiled`` does (anything else, or a folder that cannot be written, and
     nothing is saved). → ``compiled``'s result on ``dynamic`` when it was computed, else None."""
     result = None
+    if _device_count(compiled) > 1:  # a stored program is loaded onto one device (_device)
+        return result
     try:
         payload, in_tree, out_tree = serialize_executable.serialize(compiled)
         data = pickle.dumps({"format": FORMAT, "key": name, "sha256": hashlib.sha256(payload).hexdigest(),
@@ -324,6 +327,15 @@ def _save(path: Path, name: str, compiled, dynamic: tuple):
     except Exception:  # an executable that does not serialise, a read-only folder, a full disk
         pass
     return result
+
+
+def _device_count(compiled) -> int:
+    """The number of devices a compiled program's inputs and outputs are laid out on (a
+    program that shares its work out over several devices is not kept: loaded onto one
+    device, XLA aborts the process)."""
+    shardings = jax.tree.leaves((compiled.input_shardings, compiled.output_shardings),
+                                is_leaf=lambda s: isinstance(s, jax.sharding.Sharding))
+    return max((len(s.device_set) for s in shardings), default=1)
 
 
 def _device() -> list:

@@ -309,6 +309,38 @@ def test_a_new_process_loads_and_runs_a_program_that_calls_lapack(folder, tmp_pa
     np.testing.assert_allclose(first, want, rtol=1e-4, atol=1e-4)
 
 
+SHARDED_SCRIPT = """
+import sys
+import jax
+jax.config.update("jax_num_cpu_devices", 2)
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, PartitionSpec
+from dockjax import store
+
+def halves(x):  # each of two devices squares its half of the rows
+    mesh = Mesh(np.asarray(jax.local_devices()[:2]), ("items",))
+    return jax.shard_map(lambda v: v ** 2, mesh=mesh, in_specs=PartitionSpec("items"),
+                         out_specs=PartitionSpec("items"))(x)
+
+f = store.stored_jit(halves)
+out = [np.asarray(f(jnp.arange(8.0))) for _ in range(2)]
+np.save(sys.argv[1], np.stack(out))
+"""
+
+
+def test_a_program_laid_out_on_several_devices_is_run_but_not_kept(folder, tmp_path):
+    """A stored function whose program shares its work over two devices gives its result
+    and is not saved (a program loaded onto one device but laid out on two made XLA abort
+    the process). Reference: NumPy's squares."""
+    env = {**os.environ, "DOCKJAX_PROGRAMS": str(folder)}
+    r = subprocess.run([sys.executable, "-c", SHARDED_SCRIPT, str(tmp_path / "out.npy")], env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, f"exit code {r.returncode}\n{r.stderr[-3000:]}"
+    np.testing.assert_array_equal(np.load(tmp_path / "out.npy"), np.tile(np.arange(8.0) ** 2, (2, 1)))
+    assert _files(folder) == []
+
+
 def test_a_planners_template_is_saved_and_loaded_bit_for_bit(tmp_path, monkeypatch):
     """A :class:`dockjax.plan.Planner` keeps its template front in the store: a new planner
     of the same problem loads it without solving, and plans bit for bit alike; another
