@@ -133,7 +133,7 @@ def _sampled_series(problem: DockingProblem, s: dict, j: int, kind) -> np.ndarra
 
 def _sampled_peaks(problem: DockingProblem, s: dict) -> np.ndarray:
     """Sampled ``max |quantity|`` of every limit column (8, kinds)."""
-    return np.array([[_sampled_series(problem, s, j, k).max() for k in problem.kinds] for j in range(config.N_JOINTS)])
+    return np.stack([np.abs(robot.sampled_quantity(s, k, problem.home)).max(axis=0) for k in problem.kinds], axis=1)
 
 
 def _sample_excess(problem: DockingProblem, s: dict) -> np.ndarray:
@@ -543,15 +543,16 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
     None when nothing certified takes exactly ``T``."""
     line = solve.straight_line(problem, T)[0]
     certified = (solve.certify_scaling(problem, x) for x in [*starts, line])
-    exact = [_exactly(problem, solve.kept_start(problem, c), T) for c in certified if c is not None and c[1][0] <= T]
+    exact = [_exactly(problem, solve.kept_start(problem, c), T) for c in certified
+             if c is not None and c[1][0] <= T * (1 + DURATION_SLACK)]
     exact = [s for s in exact if _takes(s, T)]
     start_jerk = min((s.F[1] for s in exact), default=np.inf)
-    cap, tried = T, list(starts)
+    cap, tried = T * (1 - DURATION_ROOM), list(starts)
     for _ in range(3):
         sol = solve.least_jerk(problem, cap, tried)
         if sol is None:
             break
-        if sol.F[0] <= T:
+        if sol.F[0] <= T * (1 + DURATION_SLACK):
             exact.append(_exactly(problem, sol, T))
             break
         if sol.F[1] >= start_jerk:
@@ -562,6 +563,15 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
     return min(exact, key=lambda s: s.F[1]) if exact else None
 
 
+DURATION_ROOM = 1e-7
+"""The least-jerk solve of a duration T caps the time at ``T (1 − DURATION_ROOM)``, room for
+the certificate's time scaling (as :data:`dockjax.bulk.DURATION_ROOM`); the answer is then
+slowed to exactly T."""
+DURATION_SLACK = 1e-9
+"""A certified trajectory at most this fraction longer than a duration T (the certificate's
+time scaling, a rounding) is sped up to exactly T and certified again there."""
+
+
 def _takes(sol: solve.Solution, T: float) -> bool:
     """Whether ``sol`` is certified and takes exactly ``T`` (slowing it to ``T`` may have cut
     an interval at its upper bound, leaving it shorter)."""
@@ -569,8 +579,8 @@ def _takes(sol: solve.Solution, T: float) -> bool:
 
 
 def _exactly(problem: DockingProblem, sol: solve.Solution, T: float) -> solve.Solution:
-    """``sol`` slowed by exact time scaling to take exactly ``T`` (≥ its time), its F and G
-    evaluated again."""
+    """``sol`` time-scaled to take exactly ``T`` (at least its time, or at most
+    :data:`DURATION_SLACK` less), its F and G evaluated again."""
     x = solve.time_scale(problem, sol.x, T / float(np.sum(sol.x[: problem.n_intervals])))
     x[: problem.n_intervals] = np.minimum(x[: problem.n_intervals], problem.upper[: problem.n_intervals])
     F, G = problem.evaluate(x[None], screen=False)

@@ -146,6 +146,10 @@ def test_refine_rejects_bad_population(problem):
         refine(problem, x)
     with pytest.raises(ValueError, match="n_points"):
         best_known_front(problem, n_points=1)
+    with pytest.raises(ValueError, match="anchor_iter"):
+        best_known_front(problem, anchor_iter=0)
+    with pytest.raises(ValueError, match="anchor_restarts"):
+        best_known_front(problem, anchor_restarts=-1)
 
 
 @pytest.fixture(scope="module")
