@@ -125,15 +125,15 @@ def load_limits(path: str | Path) -> dict:
     return data
 
 
-def _sampled_series(problem: DockingProblem, s: dict, j: int, kind) -> np.ndarray:
-    """|the sampled quantity| that limit ``kind`` bounds, for joint j (m,)
+def _sampled_magnitude(problem: DockingProblem, s: dict, kind) -> np.ndarray:
+    """|the sampled quantity| that limit ``kind`` bounds, every joint (m, 8)
     (:func:`dockjax.robot.sampled_quantity`: travel about home)."""
-    return np.abs(robot.sampled_quantity(s, kind, problem.home)[:, j])
+    return np.abs(robot.sampled_quantity(s, kind, problem.home))
 
 
 def _sampled_peaks(problem: DockingProblem, s: dict) -> np.ndarray:
     """Sampled ``max |quantity|`` of every limit column (8, kinds)."""
-    return np.stack([np.abs(robot.sampled_quantity(s, k, problem.home)).max(axis=0) for k in problem.kinds], axis=1)
+    return np.stack([_sampled_magnitude(problem, s, k).max(axis=0) for k in problem.kinds], axis=1)
 
 
 def _sample_excess(problem: DockingProblem, s: dict) -> np.ndarray:
@@ -282,7 +282,7 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
     rows = []
     for j, k in zip(*np.nonzero(G > -BINDING)):
         name = config.JOINT_NAMES[j]
-        series = _sampled_series(problem, samples, j, problem.kinds[k])
+        series = _sampled_magnitude(problem, samples, problem.kinds[k])[:, j]
         row = {"limit": f"{name} {keys[k]}", "joint": name, "quantity": keys[k],
                "value": float(lim[j, k]), "unit": config.unit(j, k),
                "ratio": float(G[j, k] + 1.0), "time_s": float(samples["t"][int(np.argmax(series))]),
@@ -565,8 +565,9 @@ def _least_jerk_of_duration(problem: DockingProblem, T: float, starts) -> solve.
 
 DURATION_ROOM = 1e-7
 """The least-jerk solve of a duration T caps the time at ``T (1 − DURATION_ROOM)``, room for
-the certificate's time scaling (as :data:`dockjax.bulk.DURATION_ROOM`); the answer is then
-slowed to exactly T."""
+the certificate's time scaling; the answer is then slowed to exactly T, and where the
+certificate slowed it beyond T the cap is lowered and the solve repeated
+(:data:`dockjax.bulk.DURATION_ROOM` is wider, as the batched solve is not repeated)."""
 DURATION_SLACK = 1e-9
 """A certified trajectory at most this fraction longer than a duration T (the certificate's
 time scaling, a rounding) is sped up to exactly T and certified again there."""
