@@ -25,9 +25,11 @@ the peers: the mean square of each joint's third derivative by finite difference
 sampled acceleration), the largest ratio of |velocity| and |acceleration| to its limit
 (sampled for the peers, the kernel's exact columns for dockjax), and the median time per
 call (warm). Then a :class:`dockjax.plan.Planner` replans ``--replans`` random start and
-goal poses (the defaults ± 5 mm, ± 0.1°, ± 1° roll): median and largest time per call, and
-the largest gap of its jerk to the least jerk found at the same T from the straight line and
-from the planner's own answer (:func:`dockjax.solve.least_jerk`). The front figure
+goal poses (the defaults ± 5 mm, ± 0.1°, ± 1° roll): median and largest time per call, the
+median time of :func:`dockjax.plan.plan` on the same moves and how many of its choices the
+planner's matches (T and jerk within 0.1 %), and the largest gap of its
+jerk to the least jerk found at the same T from the straight line and from the planner's own
+answer (:func:`dockjax.solve.least_jerk`). The front figure
 (``--figure PATH``; ``--figure`` alone: ``plan_peers.png`` in a new temporary folder) shows
 the best-known front (``--best-known``: its time caps, SQP anchors and refinement steps per
 cap) with every peer's point. A peer that is not installed (ruckig and toppra come with the
@@ -48,7 +50,9 @@ start and goal ± 5 mm, ± 0.1°, seeded) with knot intervals in ``--batch-bound
 (compile and run; the compiled program is then kept in dockjax's store), the warm call, plans
 per second, the moves found feasible, and the median SQP iterations; then the SLSQP planner
 (:func:`dockjax.plan.plan`, warm) on the first ``--batch-slsqp`` moves, one at a time, for plans per second
-and the largest relative gaps of T_min and of the chosen plan's T and jerk.
+and the largest relative gaps of T_min and of the chosen plan's T and jerk, and a
+:class:`dockjax.plan.Planner` of the same problem on the feasible ones: its gaps to ``plan``,
+and on how many moves the three choose the same point (T and jerk within 0.1 %).
 """
 
 from __future__ import annotations
@@ -213,20 +217,26 @@ def batch_table(batches, bounds, n_front: int, repeats: int, slsqp: int = 3) -> 
                                repeats if B <= 10 else 1)
         print(f"| {B} | {first:.1f} | {dt:.2f} | {B / dt:.2f} | {int(res.feasible.sum())} | "
               f"{np.median(res.iterations):.0f} |")
-    times, gaps = [], []
+    times, gaps, same = [], [], 0
+    planner = Planner(problem, n_front=n_front).warm() if slsqp else None
     for i in range(min(slsqp, len(res))):
         one = res.move(i)
-        plan(one, n_front=n_front, check_sensitivities=False)  # compile
+        if i == 0:
+            plan(one, n_front=n_front, check_sensitivities=False)  # compile
         p, dt = _median_time(lambda: plan(one, n_front=n_front, check_sensitivities=False), 1)
         times.append(dt)
         if res.feasible[i]:
+            q = planner.plan(one.start, one.goal)
             gaps.append([abs(res.T_min[i] / p.settings["shortest_T_s"] - 1), abs(res.T[i] / p.T - 1),
-                         abs(res.jerk[i] / p.jerk - 1)])
+                         abs(res.jerk[i] / p.jerk - 1), abs(q.T / p.T - 1), abs(q.jerk / p.jerk - 1)])
+            same += max(gaps[-1][1], gaps[-1][3]) <= 1e-3 and max(gaps[-1][2], gaps[-1][4]) <= 1e-3
     if times:
-        g = np.max(gaps, axis=0) if gaps else [np.nan] * 3
+        g = np.max(gaps, axis=0) if gaps else [np.nan] * 5
         print(f"\nSLSQP planner (plan, warm), {len(times)} moves one at a time: median {np.median(times):.2f} s per "
               f"plan ({1 / np.median(times):.2f} plans/s); largest relative gaps to plan_batch: T_min {g[0]:.1e}, "
-              f"chosen T {g[1]:.1e}, chosen jerk {g[2]:.1e}\n")
+              f"chosen T {g[1]:.1e}, chosen jerk {g[2]:.1e}; to a Planner of the same problem: chosen T {g[3]:.1e}, "
+              f"chosen jerk {g[4]:.1e}; plan, Planner and plan_batch choose the same point (T and jerk within 0.1 %) "
+              f"for {same} of {len(gaps)} feasible moves\n")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -317,7 +327,7 @@ def main(argv: list[str] | None = None) -> None:
     planner.plan()
     rng = np.random.default_rng(0)
     half = np.array([5, 5, 5, 0.1, 0.1, 1.0])
-    times, gaps = [], []
+    times, gaps, full, same = [], [], [], 0
     for _ in range(args.replans):
         s = np.asarray(config.START) + rng.uniform(-1, 1, 6) * half
         g = np.asarray(config.GOAL) + rng.uniform(-1, 1, 6) * half
@@ -326,8 +336,14 @@ def main(argv: list[str] | None = None) -> None:
         times.append(time.perf_counter() - t)
         ref = least_jerk(p.problem, p.T, [p.x])
         gaps.append(p.jerk / ref.F[1] - 1.0)
+        t = time.perf_counter()
+        q = plan(p.problem, weights=(1.0, 1.0), n_front=args.n_front, check_sensitivities=False)
+        full.append(time.perf_counter() - t)
+        same += abs(q.T - p.T) <= 1e-3 * q.T and abs(q.jerk - p.jerk) <= 1e-3 * q.jerk
     print(f"\nPlanner (default problem), {args.replans} random start/goal poses, weights (1, 1): "
-          f"median {np.median(times) * 1e3:.1f} ms, largest {np.max(times) * 1e3:.1f} ms per plan; "
+          f"median {np.median(times) * 1e3:.1f} ms, largest {np.max(times) * 1e3:.1f} ms per plan "
+          f"(plan() on the same moves: median {np.median(full):.2f} s); the same point as plan() "
+          f"(T and jerk within 0.1 %) for {same} of {args.replans}; "
           f"jerk above the least jerk at its T by at most {100 * max(gaps):.2g} %")
 
     if args.figure is not None:  # --figure alone: plan_peers.png in a new temporary folder

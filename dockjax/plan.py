@@ -205,14 +205,32 @@ def _caps(t_min: float, t_max: float, n: int) -> np.ndarray:
     return np.geomspace(t_min, t_max, n + 1)[1:] if t_max > t_min * (1 + 1e-9) else np.zeros(0)
 
 
-def _direct_front(problem: DockingProblem, n_front: int, shortest=None, on_cap=None):
+def _direct_front(problem: DockingProblem, n_front: int, shortest=None, on_cap=None, seeds=None):
     """``(shortest, [least-jerk solutions at n_front caps up to the longest T])``, the front
-    by continuation from the shortest-time solution (one SQP solve per cap; ``on_cap`` is
+    by continuation from the shortest-time solution, or from ``seeds`` (n_front, n_var) when
+    given (:func:`dockjax.solve.least_jerk_front`; one SQP solve per cap; ``on_cap`` is
     called after each)."""
     shortest = _shortest(problem) if shortest is None else shortest
     caps = _caps(shortest.F[0], problem.n_intervals * problem.interval_bounds[1], n_front)
     return shortest, solve.least_jerk_front(problem, shortest, caps, line=False, max_iter=FRONT_ITER, restarts=0,
-                                            on_cap=on_cap)
+                                            on_cap=on_cap, seeds=seeds)
+
+
+def _choice(problem: DockingProblem, sols: list, w, on_solve=None) -> solve.Solution:
+    """The point of the front ``sols`` (the shortest-time solution first, then each cap's)
+    with the best weighted satisfaction (Eq. 26 over the front's own ends), its cap's
+    programme solved on from it to convergence (:func:`dockjax.solve.min_jerk`; the lower
+    jerk kept); the shortest-time solution for a zero jerk weight. ``on_solve`` is called
+    after that solve. :func:`plan` and :meth:`Planner.plan` choose here, so that they agree."""
+    if w[1] == 0 or len(sols) == 1:
+        return sols[0]
+    chosen = sols[select.choose(np.array([s.F for s in sols]), w)]
+    if chosen is sols[0]:
+        return chosen
+    better = solve.min_jerk(problem, chosen.x, float(chosen.F[0]))
+    if on_solve is not None:
+        on_solve()
+    return better if better is not None and better.F[1] < chosen.F[1] else chosen
 
 
 def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
@@ -414,11 +432,8 @@ def _plan(problem, w, rate, method, pop_size, n_iter, seed, refine_steps, n_fron
         _, front = _direct_front(problem, n_front, shortest, on_cap=bar.update)
         sols = [shortest] + front
         front_F = np.array([s.F for s in sols])
-        chosen = shortest if time_only or d is not None else sols[select.choose(front_F, w)]
-        if chosen is not shortest:  # the chosen cap solved once more, from the straight line too
-            bar.set_postfix_str("the chosen point's least jerk")
-            chosen = solve.least_jerk(problem, float(chosen.F[0]), [chosen.x]) or chosen
-            bar.update()
+        bar.set_postfix_str("the chosen point's least jerk")
+        chosen = shortest if d is not None else _choice(problem, sols, w, on_solve=bar.update)
     else:
         bar.set_postfix_str(f"{method}, {n_iter} iterations")
         X, F = _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps)
@@ -633,31 +648,31 @@ def template(problem: DockingProblem, n_front: int) -> np.ndarray:
 
 
 class Planner:
-    """Plans for many start and goal poses of one problem shape, fast once warm.
+    """Plans for many start and goal poses of one problem shape, fast once warm, each the
+    plan :func:`plan` would give.
 
     The first :meth:`plan` solves the problem given to the constructor in full
     (:func:`plan`'s ``"direct"`` method) and keeps its front as a template (:func:`template`:
-    saved in the store of compiled programs, so a new process loads it). Every later
-    call carries the template over to the new poses (:func:`dockjax.solve.map_to`), slows
-    each point by exact time scaling until the kernel certifies it, chooses by the
-    weights among them, and solves the least jerk (or the shortest time, for a zero jerk
-    weight) warm from the chosen point, all in programmes compiled once. The answer is
-    certified like :func:`plan`'s; its explanation carries the multiplier sensitivities
-    (no re-planning).
+    saved in the store of compiled programs, so a new process loads it). Every later call
+    solves the new move's own front as :func:`plan` does (the shortest time, then the least
+    jerk at the same ``n_front`` caps up to the longest T), but each programme warm from the
+    template's point carried over to the new poses (:func:`dockjax.solve.map_to`) instead
+    of from the straight line and the previous cap, then chooses by Eq. 26 over that front
+    and solves the chosen cap once more (:func:`_choice`, shared with :func:`plan`): the
+    same front ends, the same normalisation, the same point. The answer is certified like
+    :func:`plan`'s; its explanation carries the multiplier sensitivities (no re-planning).
 
     ``problem``: the template (default :class:`DockingProblem`); start and goal of later
-    calls replace its own, every other field is kept. ``max_iter``: SQP iterations of a
-    warm solve.
+    calls replace its own, every other field is kept.
     """
 
     def __init__(self, problem: DockingProblem | None = None, *, rate: float = config.RATE,
-                 n_front: int = config.PLAN_FRONT, max_iter: int = 40):
+                 n_front: int = config.PLAN_FRONT):
         self.problem = problem or DockingProblem()
         if not isinstance(self.problem, DockingProblem):
             raise ValueError(f"problem must be a DockingProblem, got {type(self.problem).__name__}")
         self.rate = checks.rate(rate)
         self.n_front = checks.integer("n_front", n_front, 2, 200)
-        self.max_iter = checks.integer("max_iter", max_iter, 1)
         self._template: np.ndarray | None = None
 
     def _problem_for(self, start, goal) -> DockingProblem:
@@ -676,44 +691,37 @@ class Planner:
         interval bounds allow (the first :meth:`plan` does it otherwise)."""
         if self._template is None:
             self._template = template(self.problem, self.n_front)
-            x = self._template[1]
-            solve.min_jerk(self.problem, x, float(np.sum(x[: self.problem.n_intervals])), max_iter=self.max_iter)
             # samples are computed in buckets of lengths: one trajectory per bucket compiles them all
             t_lo, t_hi = (self.problem.n_intervals * b for b in self.problem.interval_bounds)
             for T in bucket_durations(t_lo, t_hi, self.rate):
                 self.problem.decode(solve.straight_line(self.problem, [T])[0]).sample(self.rate)
-            self.plan(self.problem.start, self.problem.goal)  # compiles the replanning path once
+            # the carrying over and its certification (the solves are the template's programmes)
+            solve.certify_scaling(self.problem, solve.map_to(self.problem, self.problem, self._template)[0])
         return self
 
     def plan(self, start=None, goal=None, *, weights=(1.0, 1.0)) -> Plan:
         """A certified plan from ``start`` to ``goal`` (6,) (default: the template's), chosen
-        by ``weights`` (w_T, w_jerk) as in :func:`plan`. Raises ValueError on bad input and
-        :class:`PlanError` when no trajectory is found."""
+        by ``weights`` (w_T, w_jerk) as in :func:`plan` (a zero jerk weight: the shortest
+        time, no front). Raises ValueError on bad input and :class:`PlanError` when no
+        trajectory is found."""
         w = select.check_weights(weights, 2)
         problem = self._problem_for(start, goal)
         check_move(problem)
         self.warm()
         X = solve.map_to(problem, self.problem, self._template)
-        _, G = problem.evaluate(X)
-        need = solve.scaling_need(G)
-        ok = robot.by_kind(G)[:, :, 0].max(1) <= 0
-        X = np.array([solve.time_scale(problem, x, s * (1 + 1e-9)) for x, s in zip(X, need)])
-        ok &= np.all(X[:, : problem.n_intervals] <= problem.upper[: problem.n_intervals], 1)
-        if not ok.any():
-            return plan(problem, weights=w, rate=self.rate, n_front=self.n_front, check_sensitivities=False)
-        Fs, _ = problem.evaluate(X)
-        j = int(np.flatnonzero(ok)[select.choose(Fs[ok], w)])
-        if w[1] == 0:
-            sol = solve.min_time(problem, X[j], max_iter=self.max_iter, restarts=0)
-        else:
-            sol = solve.min_jerk(problem, X[j], float(Fs[j, 0]), max_iter=self.max_iter, restarts=0)
-        if sol is None:
-            raise PlanError("the warm solve found no certified trajectory")
-        samples = _certify(problem, sol.x, self.rate)
-        why = explain(problem, sol, samples, time_optimal=w[1] == 0, check=False)
-        settings = {"weights": list(map(float, w)), "rate": self.rate, "method": "planner", "n_front": self.n_front}
-        return Plan(problem, problem.decode(sol.x), sol.x, float(sol.F[0]), float(sol.F[1]),
-                    nondominated_points(Fs[ok]), samples, self.rate, tuple(w), settings, why)
+        first = solve.certify_scaling(problem, X[0])
+        shortest = _shortest(problem, None if first is None else first[0])
+        sols = [shortest]
+        if w[1] != 0:
+            seeds = X[1:] if len(X) == self.n_front + 1 else None  # a template cap without an answer: by continuation
+            sols += _direct_front(problem, self.n_front, shortest, seeds=seeds)[1]
+        chosen = _choice(problem, sols, w)
+        samples = _certify(problem, chosen.x, self.rate)
+        why = explain(problem, chosen, samples, time_optimal=chosen is shortest, check=False)
+        settings = {"weights": list(map(float, w)), "rate": self.rate, "method": "planner", "n_front": self.n_front,
+                    "shortest_T_s": float(shortest.F[0])}
+        return Plan(problem, problem.decode(chosen.x), chosen.x, float(chosen.F[0]), float(chosen.F[1]),
+                    nondominated_points(np.array([s.F for s in sols])), samples, self.rate, tuple(w), settings, why)
 
 
 def explain_text(why: dict) -> str:
