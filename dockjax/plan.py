@@ -219,15 +219,15 @@ def _direct_front(problem: DockingProblem, n_front: int, shortest=None, on_cap=N
 def _choice(problem: DockingProblem, sols: list, w, on_solve=None) -> solve.Solution:
     """The point of the front ``sols`` (the shortest-time solution first, then each cap's)
     with the best weighted satisfaction (Eq. 26 over the front's own ends), its cap's
-    programme solved on from it to convergence (:func:`dockjax.solve.min_jerk`; the lower
-    jerk kept); the shortest-time solution for a zero jerk weight. ``on_solve`` is called
+    programme solved on from it (:func:`dockjax.solve.min_jerk`, up to 200 SLSQP iterations,
+    no restarts; the lower jerk kept); the shortest-time solution for a zero jerk weight. ``on_solve`` is called
     after that solve. :func:`plan` and :meth:`Planner.plan` choose here, so that they agree."""
     if w[1] == 0 or len(sols) == 1:
         return sols[0]
     chosen = sols[select.choose(np.array([s.F for s in sols]), w)]
     if chosen is sols[0]:
         return chosen
-    better = solve.min_jerk(problem, chosen.x, float(chosen.F[0]))
+    better = solve.min_jerk(problem, chosen.x, float(chosen.F[0]), restarts=0)
     if on_solve is not None:
         on_solve()
     return better if better is not None and better.F[1] < chosen.F[1] else chosen

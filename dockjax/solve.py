@@ -613,17 +613,21 @@ def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     (``d T_min / d limit``). Where the interval bounds decide the time (every interval at
     its lower bound) the shortest trajectories form a whole family, and the first
     answer of the time programme is rarely its smoothest: there the least jerk is solved
-    from it and from the straight line of that T (:func:`least_jerk`), so that the answer,
-    the front's upper jerk end, hardly depends on where the time programme started."""
+    from it and from the straight line of that T (:func:`least_jerk`); elsewhere from it,
+    with :data:`RESTARTS` in the paper's family, so that the answer, the front's upper jerk
+    end that Eq. 26 normalises by, hardly depends on where the time programme started."""
     sol = min_time(problem, x0, tol=tol, max_iter=max_iter)
     if sol is None:
         return None
     n = problem.n_intervals
     if np.all(sol.x[:n] <= problem.lower[:n] * (1 + 1e-9)):  # the bounds decide T: the line takes it too
         smooth = least_jerk(problem, float(sol.F[0]), [sol.x], tol=tol, max_iter=max_iter)
-    else:  # with restarts (a first solve often stops at several times the least jerk), or without where they fail
-        smooth = (min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter)
-                  or min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=0))
+    else:  # the paper's family with restarts (a first solve often stops at several times the least jerk),
+        # or without where they fail; larger families without (each restart costs minutes there)
+        restarts = RESTARTS if problem.n_control <= config.N_FREE else 0
+        smooth = (min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=restarts)
+                  or (min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=0)
+                      if restarts else None))
     if smooth is not None and smooth.F[1] < sol.F[1] and smooth.F[0] <= sol.F[0] * (1 + SHORTEST_SLACK):
         sol = dataclasses.replace(sol, x=smooth.x, F=smooth.F, G=smooth.G)
     return sol
