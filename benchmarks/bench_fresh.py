@@ -10,7 +10,8 @@ reports the import time, the first call's time and the second's (warm). Calls: `
 (:meth:`dockjax.DockingProblem.evaluate` of ``--rows`` random candidates of the paper's
 problem), ``plan`` (:func:`dockjax.plan.plan` of the paper's default move, the second call
 on the same move) and ``planner`` (a :class:`dockjax.plan.Planner`'s first ``plan`` of a
-move 1 mm off the default one, which solves the template first, then a second move).
+start 1 mm off the default one in x, y and z, which first loads or solves the template,
+then the same move again: the warm call solves the same programmes from the same starts).
 
 Per pair of measurements, in new folders: ``cold`` (an empty store, as a first run with
 the library's defaults: everything compiles, and the store fills), then ``store`` (the
@@ -55,8 +56,8 @@ elif call == "plan":
     first = second = lambda: plan(problem)
 else:
     planner = Planner(problem)
-    first = lambda: planner.plan(np.asarray(problem.start) + 1.0)
-    second = lambda: planner.plan(np.asarray(problem.start) - 1.0)
+    move = np.asarray(problem.start) + np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+    first = second = lambda: planner.plan(move)
 times = []
 for f in (first, second):
     t = time.perf_counter()
