@@ -655,9 +655,11 @@ class Planner:
     (:func:`plan`'s ``"direct"`` method) and keeps its front as a template (:func:`template`:
     saved in the store of compiled programs, so a new process loads it). Every later call
     solves the new move's own front as :func:`plan` does (the shortest time, then the least
-    jerk at the same ``n_front`` caps up to the longest T), but each programme warm from the
-    template's point carried over to the new poses (:func:`dockjax.solve.map_to`) instead
-    of from the straight line and the previous cap, then chooses by Eq. 26 over that front
+    jerk at the same ``n_front`` caps up to the longest T): the shortest time from the
+    straight line, as :func:`plan` solves it, and from the template's shortest-time point
+    carried over to the new poses (:func:`dockjax.solve.map_to`), the shorter kept (the time
+    programme is not convex); each cap warm from the template's point carried over, instead
+    of from the previous cap; then it chooses by Eq. 26 over that front
     and solves the chosen cap once more (:func:`_choice`, shared with :func:`plan`): the
     same front ends, the same normalisation, the same point. The answer is certified like
     :func:`plan`'s; its explanation carries the multiplier sensitivities (no re-planning).
@@ -710,7 +712,19 @@ class Planner:
         self.warm()
         X = solve.map_to(problem, self.problem, self._template)
         first = solve.certify_scaling(problem, X[0])
-        shortest = _shortest(problem, None if first is None else first[0])
+        # the time programme is not convex: from plan()'s own start (the straight line), and
+        # from the template's shortest-time point where it certifies; the shorter is kept
+        found, error = [], None
+        for x0 in [None] + ([] if first is None else [first[0]]):
+            try:
+                found.append(_shortest(problem, x0))
+            except PlanError as e:
+                error = e
+        if not found:
+            raise error
+        shortest = found[0]
+        if len(found) == 2 and found[1].F[0] < shortest.F[0] * (1 - 1e-9):
+            shortest = found[1]
         sols = [shortest]
         if w[1] != 0:
             seeds = X[1:] if len(X) == self.n_front + 1 else None  # a template cap without an answer: by continuation
