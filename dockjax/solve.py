@@ -625,9 +625,9 @@ def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     else:  # the paper's family with restarts (a first solve often stops at several times the least jerk),
         # or without where they fail; larger families without (each restart costs minutes there)
         restarts = RESTARTS if problem.n_control <= config.N_FREE else 0
-        smooth = (min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=restarts)
-                  or (min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=0)
-                      if restarts else None))
+        smooth = min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=restarts)
+        if smooth is None and restarts:
+            smooth = min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=0)
     if smooth is not None and smooth.F[1] < sol.F[1] and smooth.F[0] <= sol.F[0] * (1 + SHORTEST_SLACK):
         sol = dataclasses.replace(sol, x=smooth.x, F=smooth.F, G=smooth.G)
     return sol
