@@ -425,7 +425,8 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
             a = np.zeros_like(u0)
             a[:n] = -wh
             cons.append({"type": "ineq", "fun": lambda u: b + a @ u, "jac": lambda u: a})
-        for _ in range(1 + restarts):  # a restart renews SLSQP's curvature estimate
+        last = None
+        for _ in range(1 + restarts):  # a restart renews SLSQP's curvature estimate, while it helps
             res = minimize(lambda u: values(u)[0], u0, jac=lambda u: values(u)[1], method="SLSQP",
                            bounds=list(zip(np.zeros_like(top), top)), constraints=cons,
                            options={"maxiter": int(max_iter), "ftol": tol})
@@ -433,6 +434,10 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
             if res.success:
                 break
             u0 = np.clip(res.x, 0.0, top)
+            now = (float(values(u0)[0]), float(max(np.max(values(u0)[2]), 0.0)))
+            if last is not None and not _progress(last, now):
+                break
+            last = now
         if keep is None:
             break
         u0 = np.clip(res.x, 0.0, top)
@@ -451,6 +456,19 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
             mult[keep] = m[:n_kept]
     cap_mult = float(m[n_kept]) if cap is not None and m.size > n_kept else 0.0
     return lo + np.clip(res.x, 0.0, top) * width, res, (mult.reshape(n, config.N_JOINTS, -1), cap_mult)
+
+
+RESTART_GAIN = 1e-9
+"""A restart of SLSQP (:func:`_slsqp`) is followed by another only when it lowered the
+objective by more than this fraction of itself, or the largest constraint violation by
+more than this much (the constraints are dimensionless, ``(q/L)²`` against 1): restarts
+that end where the last one did (a programme with no room left, e.g. the least jerk capped
+at a shortest time whose answer has intervals at their upper bounds) are not repeated."""
+
+
+def _progress(last, now) -> bool:
+    """Whether ``now`` = (objective, violation) improves on ``last`` by :data:`RESTART_GAIN`."""
+    return now[0] < last[0] - RESTART_GAIN * abs(last[0]) or now[1] < last[1] - RESTART_GAIN
 
 
 DENSE_CONSTRAINTS = 720
@@ -615,7 +633,10 @@ def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     answer of the time programme is rarely its smoothest: there the least jerk is solved
     from it and from the straight line of that T (:func:`least_jerk`); elsewhere from it,
     with :data:`RESTARTS` in the paper's family, so that the answer, the front's upper jerk
-    end that Eq. 26 normalises by, hardly depends on where the time programme started."""
+    end that Eq. 26 normalises by, hardly depends on where the time programme started; when
+    nothing certified is found at T_min itself (the certificate's time scaling of an answer
+    with intervals at their upper bounds leaves the box), at ``T_min (1 + SHORTEST_SLACK/2)``,
+    the first cap of :func:`dockjax.bulk.plan_batch`'s front."""
     sol = min_time(problem, x0, tol=tol, max_iter=max_iter)
     if sol is None:
         return None
@@ -626,8 +647,9 @@ def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
         # or without where they fail; larger families without (each restart costs minutes there)
         restarts = RESTARTS if problem.n_control <= config.N_FREE else 0
         smooth = min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=restarts)
-        if smooth is None and restarts:
-            smooth = min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=0)
+        if smooth is None:  # nothing certified at T_min itself (no room to slow an answer): half the slack
+            cap = float(sol.F[0]) * (1.0 + 0.5 * SHORTEST_SLACK)
+            smooth = min_jerk(problem, sol.x, cap, tol=tol, max_iter=max_iter, restarts=0)
     if smooth is not None and smooth.F[1] < sol.F[1] and smooth.F[0] <= sol.F[0] * (1 + SHORTEST_SLACK):
         sol = dataclasses.replace(sol, x=smooth.x, F=smooth.F, G=smooth.G)
     return sol
