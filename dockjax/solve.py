@@ -185,10 +185,10 @@ def _values(problem, u, scale, time_weight):
 @stored_jit
 def _primal_values(problem, u, scale, time_weight):
     """:func:`_values` without the constraints' Jacobian: the objective, its gradient and the
-    constraints. For a large family the Jacobian is most of :func:`_values`'s cost (at 32
-    free control points about 20 times the rest), and SLSQP's line search asks for values
-    alone; the objective and its gradient are bit for bit :func:`_values`'s, the
-    constraints equal to rounding."""
+    constraints. The Jacobian is most of :func:`_values`'s cost (in the paper's family
+    0.35 of 0.63 ms a call, at 32 free control points about 20 times the rest), and SLSQP's
+    line search asks for values alone; the objective and its gradient are bit for bit
+    :func:`_values`'s, the constraints equal to rounding."""
 
     x = _x_of(problem, u)
     fv, fg = jax.value_and_grad(_objective)(u, problem, scale, time_weight)
@@ -382,9 +382,8 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
     top[:n] -= room
     u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, top)
     n_candidates = n * config.N_JOINTS * critical_values(problem)
-    # a large programme takes its values and the constraints' Jacobian from two programmes
-    # (the line search asks for values alone); the paper's family takes all four from one
-    split = n_candidates > DENSE_CONSTRAINTS
+    # values from one programme and the constraints' Jacobian from another: SLSQP's line
+    # search asks for values alone, 1.5 to 9 times per iteration
     cache, jac_cache = {}, {}
 
     def values(u):
@@ -392,14 +391,11 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
         if key not in cache:
             cache.clear()
             with jax.enable_x64(True):
-                out = (_primal_values if split else _values)(problem, u, np.float64(scale), np.float64(kind == "time"))
+                out = _primal_values(problem, u, np.float64(scale), np.float64(kind == "time"))
             cache[key] = tuple(np.asarray(a, np.float64) for a in out)
-        return cache[key] if split else cache[key][:3]
+        return cache[key]
 
     def jacobian(u):
-        if not split:
-            values(u)
-            return cache[u.tobytes()][3]
         key = u.tobytes()
         if key not in jac_cache:
             jac_cache.clear()
@@ -473,10 +469,7 @@ def _progress(last, now) -> bool:
 
 DENSE_CONSTRAINTS = 720
 """Most limit constraints an SQP step takes all at once (the paper's family has 720); larger
-programmes keep their near-active ones (:data:`NEAR_ACTIVE`), and take their values
-(:func:`_primal_values`) and the constraints' Jacobian (:func:`_values`) from two compiled
-programmes, as SLSQP's line search asks for values about seven times as often as for the
-Jacobian."""
+programmes keep their near-active ones (:data:`NEAR_ACTIVE`)."""
 NEAR_ACTIVE = 0.75
 """A limit constraint ``(q/L)² − (1 − r/L)²`` of a large programme is kept when above
 ``−NEAR_ACTIVE`` (the value above about half its limit); a solve is repeated, with the

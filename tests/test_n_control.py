@@ -234,12 +234,13 @@ def test_a_trajectory_carried_to_a_finer_family_keeps_its_scores():
     assert refine_family(coarse, fine, y) is None  # no family with fewer points
 
 
-def test_a_large_programme_takes_its_values_without_the_jacobian_and_solves_alike(monkeypatch):
-    """A programme with more candidate constraints than ``solve.DENSE_CONSTRAINTS`` asks for
-    values (objective, gradient, constraints) and the constraints' Jacobian from two compiled
-    programmes. The values are the one-programme values (objective and gradient bit for bit,
-    constraints to rounding), and the two-programme path, forced here on a small family,
-    reaches a certified shortest time within 1e-6 of the one-programme path's."""
+def test_values_come_without_the_jacobian_and_a_large_programme_solves_alike(monkeypatch):
+    """SLSQP asks for values (objective, gradient, constraints) and the constraints' Jacobian
+    from two compiled programmes: the values are those of the programme with the Jacobian
+    (objective and gradient bit for bit, constraints to rounding). A programme with more
+    candidate constraints than ``solve.DENSE_CONSTRAINTS`` keeps its near-active ones; that
+    path, forced here on a small family, reaches a certified shortest time within 1e-6 of
+    the path with every constraint."""
     import jax
 
     from dockjax import solve
