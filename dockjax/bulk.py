@@ -1,7 +1,7 @@
 """Certified plans of many moves in one compiled call (:func:`plan_batch`).
 
 B moves of one robot (one limit table, one arm distance, one spline family) are planned by
-one JAX program, vmapped over the moves: per move
+one JAX program (:func:`_planned`): per move
 
 1. the straight line at the shortest T the box allows, slowed until the kernel certifies
    it (exact time scaling, :func:`_certified`): the start;
@@ -322,75 +322,100 @@ def _better(new, old):
     return jax.tree.map(lambda a, b: jnp.where(take, a, b), new, old)
 
 
-def _move(p: DockingProblem, weights, duration, n_front: int):
-    """One move's plan (module docstring): → a dict of x, F, G, ok, T_min, front
-    (n_front + 1, 2), front_ok, chosen, iterations, cap_iterations. ``duration`` > 0: the
-    least-jerk plan of that duration instead of a choice by ``weights`` (one program serves
-    both).
+def _planned(P: DockingProblem, weights, duration, n_front: int):
+    """Every move's plan (module docstring): ``P`` the batched problem (leaves (B, ...)),
+    ``duration`` (B,) (> 0: the least-jerk plan of that duration instead of a choice by
+    ``weights``; one program serves both). → a dict of per-move x, F, ok, T_min, front
+    (n_front + 1, 2), front_ok, chosen, iterations, cap_iterations (each with a leading B).
 
     The three steps run as one ``lax.scan`` over stages of one body (one compiled SQP and one
-    certificate, however many stages): each stage solves ``n_front + 1`` programmes at once;
-    the first certifies the straight line (no SQP), the second solves the shortest-time
+    certificate, however many stages): each stage solves ``n_front + 1`` programmes of every
+    move at once, B × (n_front + 1) lanes in one vmapped call of :func:`_lane`; the first
+    stage certifies the straight line (no SQP), the second solves the shortest-time
     programme in every lane, from the certified line and its variants
     (:func:`_time_starts`), and keeps the shortest certified answer, the third the
     least-jerk programme at every cap of the front, or at the duration from the
     shortest-time trajectory slowed to it (first lane) and from the straight line of that
-    duration (the others)."""
-    n = p.n_intervals
+    duration (the others). The scan is outside every vmap, and the lanes of all moves are
+    one vmapped axis: the loops inside are batched once, not once per level (tracing and
+    compiling the program takes that much less)."""
+    B = duration.shape[0]
     lanes = n_front + 1
-    longest = n * p.interval_bounds[1]
-    line = _line(p, n * p.interval_bounds[0])
     first = jnp.arange(lanes) == 0
-    timed = duration > 0
+    repeat = jax.tree.map(lambda leaf: jnp.repeat(leaf, lanes, axis=0), P)  # each move's problem per lane
+    lines = jax.vmap(lambda p: _line(p, p.n_intervals * p.interval_bounds[0]))(P)
 
-    def caps_of(T_min):
+    def caps_of(p, T_min, d):
+        longest = p.n_intervals * p.interval_bounds[1]
         ratio = jnp.where(longest > T_min * (1 + 1e-9), longest / T_min, 1.0)
         caps = T_min * ratio ** (jnp.arange(lanes) / n_front)
         # the first cap: the least jerk among the shortest, within half the slack shortest() allows
         # of a duration: a hair below it, so that the certificate's slowing stays within it
-        return jnp.where(timed, duration * (1.0 - DURATION_ROOM), caps.at[0].multiply(1.0 + 0.5 * solve.SHORTEST_SLACK))
+        return jnp.where(d > 0, d * (1.0 - DURATION_ROOM), caps.at[0].multiply(1.0 + 0.5 * solve.SHORTEST_SLACK))
 
-    def stage(short, s):
-        T_min = short[1][0]
-        caps = caps_of(T_min)
-        scaled = jnp.broadcast_to(short[0], (lanes, short[0].shape[0]))
+    def starts(p, line, short_x, T_min, d, s):
+        """One move's lanes at stage s: starts (lanes, n_var), caps, iteration limits, targets."""
+        n = p.n_intervals
+        timed = d > 0
+        caps = caps_of(p, T_min, d)
+        scaled = jnp.broadcast_to(short_x, (lanes, short_x.shape[0]))
         scaled = scaled.at[:, :n].set(jnp.minimum(scaled[:, :n] * (caps / T_min)[:, None], p.upper[:n]))
-        scaled = jnp.where((timed & ~first)[:, None], _line(p, duration), scaled)
-        x0 = jnp.where(s == 0, line, jnp.where(s == 1, _time_starts(p, short[0], lanes), scaled))
+        scaled = jnp.where((timed & ~first)[:, None], _line(p, d), scaled)
+        x0 = jnp.where(s == 0, line, jnp.where(s == 1, _time_starts(p, short_x, lanes), scaled))
         limit = jnp.where(s == 0, 0, jnp.where(s == 1, jnp.where(first, PARAMS.max_iter, START_ITER),
                                                jnp.where(timed, DURATION_ITER, FRONT_ITER)))
-        target = jnp.where((s == 2) & timed, duration, 0.0)
-        out = jax.vmap(_lane, in_axes=(None, 0, None, 0, 0, None))(p, x0, jnp.where(s == 2, 0.0, 1.0), caps, limit,
-                                                                   target)
-        lane0 = jax.tree.map(lambda a: a[0], out[:4])
+        target = jnp.where((s == 2) & timed, d, 0.0)
+        return x0, caps, limit, jnp.broadcast_to(target, (lanes,))
+
+    def merge(out, short, s):
+        """One move's best so far after stage s, and the lane of its shortest certified time."""
+        lane0 = jax.tree.map(lambda a: a[0], out)
         # the shortest certified time of the lanes (stage 1 solves the time programme in
         # every lane, each from its own start)
         k = jnp.argmin(jnp.where(out[3], out[1][:, 0], jnp.inf))
-        best = jax.tree.map(lambda a: a[k], out[:4])
+        best = jax.tree.map(lambda a: a[k], out)
         new = jax.tree.map(lambda a, b, c: jnp.where(s == 0, a, jnp.where(s == 1, b, c)),
                            lane0, _better(best, short), short)
+        return new, k
+
+    def stage(short, s):
+        x0, caps, limit, target = jax.vmap(starts, in_axes=(0, 0, 0, 0, 0, None))(P, lines, short[0], short[1][:, 0],
+                                                                                duration, s)
+        flat = lambda a: a.reshape((B * lanes,) + a.shape[2:])  # noqa: E731
+        out = jax.vmap(_lane, in_axes=(0, 0, None, 0, 0, 0))(repeat, flat(x0), jnp.where(s == 2, 0.0, 1.0),
+                                                             flat(caps), flat(limit), flat(target))
+        out = jax.tree.map(lambda a: a.reshape((B, lanes) + a.shape[1:]), out)
+        new, k = jax.vmap(merge, in_axes=(0, 0, None))(out[:4], short, s)
         return new, (*out, k)
 
-    empty = (line, jnp.zeros(2, line.dtype), jnp.zeros(p.n_con, line.dtype), jnp.zeros((), bool))
+    n_con = P.n_con
+    empty = (lines, jnp.zeros((B, 2), lines.dtype), jnp.zeros((B, n_con), lines.dtype), jnp.zeros(B, bool))
     short, outs = jax.lax.scan(stage, empty, jnp.arange(3))
-    sols = jax.tree.map(lambda a: a[2], outs[:4])
-    iters, cap_iters = outs[4][1, outs[5][1]], outs[4][2]
+    return jax.vmap(_finish, in_axes=(0, 1, 1, 1, 1, 1, 1, None, 0))(
+        short, *outs[:4], outs[4], outs[5], weights, duration)
+
+
+def _finish(short, X, F, G, ok, iterations, k, weights, d):
+    """One move's answer from its stages' lanes (``X`` (3, lanes, n_var), ...; ``k`` (3,):
+    the lane of each stage's shortest certified time): by weights, the time-optimal
+    trajectory is the front's first point, smoothed where the first cap found less jerk,
+    and the choice of Eq. 26; of a duration, every lane's answer (or start) time-scaled to
+    exactly the duration and certified there, the first lane's start being the
+    shortest-time trajectory slowed to it: the least jerk of those."""
+    sols = (X[2], F[2], G[2], ok[2])
+    iters, cap_iters = iterations[1, k[1]], iterations[2]
     T_min = short[1][0]
-    # by weights: the time-optimal trajectory is the front's first point, smoothed where the
-    # first cap found less jerk; the choice of Eq. 26
     smooth = jax.tree.map(lambda a: a[0], sols)
     keep = smooth[3] & (smooth[1][1] < short[1][1]) & (smooth[1][0] <= T_min * (1 + solve.SHORTEST_SLACK))
     head = jax.tree.map(lambda a, b: jnp.where(keep, a, b), smooth, short)
-    X, F, G, ok = (jnp.concatenate([h[None], v[1:]]) for h, v in zip(head, sols))
-    j = _choose(F, weights, ok)
-    # of a duration: every lane's answer (or start) time-scaled to exactly the duration and
-    # certified there, the first lane's start being the shortest-time trajectory slowed to it;
-    # the least jerk of those
+    Xf, Ff, _, okf = (jnp.concatenate([h[None], v[1:]]) for h, v in zip(head, sols))
+    j = _choose(Ff, weights, okf)
     okd = sols[3] & short[3]
     i = jnp.argmin(jnp.where(okd, sols[1][:, 1], jnp.inf))
+    timed = d > 0
     pick = lambda a, b: jnp.where(timed, a, b)  # noqa: E731
-    return dict(x=pick(sols[0][i], X[j]), F=pick(sols[1][i], F[j]), ok=pick(okd[i], ok[j]), T_min=T_min,
-                front=pick(sols[1], F), front_ok=pick(okd, ok), chosen=pick(-1, j), iterations=iters,
+    return dict(x=pick(sols[0][i], Xf[j]), F=pick(sols[1][i], Ff[j]), ok=pick(okd[i], okf[j]), T_min=T_min,
+                front=pick(sols[1], Ff), front_ok=pick(okd, okf), chosen=pick(-1, j), iterations=iters,
                 cap_iterations=cap_iters)
 
 
@@ -407,8 +432,8 @@ def _choose(F, weights, valid):
 
 @stored_jit(static_argnums=(0,))
 def _plan_moves(n_front: int, p: DockingProblem, weights, duration):
-    """:func:`_move` of every move of the batched ``p`` (``duration`` (B,), 0: by weights)."""
-    return jax.vmap(_move, in_axes=(0, None, 0, None))(p, weights, duration, n_front)
+    """:func:`_planned` of the batched ``p`` (``duration`` (B,), 0: by weights)."""
+    return _planned(p, weights, duration, n_front)
 
 
 def _bucket(b: int) -> int:
