@@ -636,8 +636,8 @@ def shortest(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     n = problem.n_intervals
     if np.all(sol.x[:n] <= problem.lower[:n] * (1 + 1e-9)):  # the bounds decide T: the line takes it too
         smooth = least_jerk(problem, float(sol.F[0]), [sol.x], tol=tol, max_iter=max_iter)
-    else:  # the paper's family with restarts (a first solve often stops at several times the least jerk),
-        # or without where they fail; larger families without (each restart costs minutes there)
+    else:  # the paper's family with restarts (a first solve often stops at several times the least jerk);
+        # larger families without (each restart costs minutes there)
         restarts = RESTARTS if problem.n_control <= config.N_FREE else 0
         smooth = min_jerk(problem, sol.x, float(sol.F[0]), tol=tol, max_iter=max_iter, restarts=restarts)
         if smooth is None:  # nothing certified at T_min itself (no room to slow an answer): half the slack
