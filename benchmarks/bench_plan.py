@@ -41,8 +41,8 @@ intervals): the default move with Table 2 limits, and the same move with jerk li
 :data:`JERK_LIMITS` per arm joint beside ruckig's time-optimal joint-space move under the
 same velocity, acceleration and jerk limits. Per n: T, T over ruckig's, the largest sampled
 |jerk| over its limit (at ``--peer-rate``) and the kernel's largest column (certified: at
-most 0), and the wall time of one warm :func:`dockjax.plan.plan` call (after one call that
-compiles) and its ratio to the first n's.
+most 0), and the wall time of one warm :func:`dockjax.plan.plan` call (``--n-front`` caps,
+after one call that compiles) and its ratio to the first n's.
 
 The batch table (``--batches``, no values to skip it) plans B random moves (the default
 start and goal ± 5 mm, ± 0.1°, seeded) with knot intervals in ``--batch-bounds`` by
@@ -161,17 +161,17 @@ def _toppra_samples(traj, rate):
     return t, traj(t), traj(t, 1), traj(t, 2)
 
 
-def _timed_plan(problem, rate):
-    """The shortest-time plan of ``problem`` and the wall time of a warm call (after one that
-    compiles)."""
-    options = dict(weights=(1.0, 0.0), rate=rate, check_sensitivities=False)
+def _timed_plan(problem, rate, n_front):
+    """The shortest-time plan of ``problem`` (its front at ``n_front`` caps) and the wall time
+    of a warm call (after one that compiles)."""
+    options = dict(weights=(1.0, 0.0), rate=rate, n_front=n_front, check_sensitivities=False)
     plan(problem, **options)
     t = time.perf_counter()
     p = plan(problem, **options)
     return p, time.perf_counter() - t
 
 
-def n_control_table(n_controls, rate: float, skipped: list[str]) -> None:
+def n_control_table(n_controls, rate: float, skipped: list[str], n_front: int) -> None:
     """The last table of the module docstring."""
     print(f"\nshortest time with n free control points, default move, intervals in {N_CONTROL_BOUNDS} s; "
           f"jerk limits {JERK_LIMITS} per arm joint beside ruckig under the same limits\n")
@@ -180,9 +180,9 @@ def n_control_table(n_controls, rate: float, skipped: list[str]) -> None:
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     ruck, first = None, None
     for n in n_controls:
-        plain, t_plain = _timed_plan(DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n), rate)
+        plain, t_plain = _timed_plan(DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n), rate, n_front)
         problem = DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n, jerk=JERK_LIMITS)
-        p, t_jerk = _timed_plan(problem, rate)
+        p, t_jerk = _timed_plan(problem, rate, n_front)
         lim = np.asarray(problem.limits)
         if ruck is None and _peer("ruckig", skipped) is not None:
             q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))
@@ -357,7 +357,7 @@ def main(argv: list[str] | None = None) -> None:
 
     if args.controls:
         skipped: list[str] = []
-        n_control_table(args.controls, rate, skipped)
+        n_control_table(args.controls, rate, skipped, args.n_front)
         for note in skipped:
             print(f"\n{note}")
 

@@ -166,8 +166,8 @@ def _coarser(problem: DockingProblem) -> int:
     from: with jerk limits :func:`_halved` (a continuation over families); without, the
     paper's five at once. Measured on the default move with knot
     intervals in [0.05, 30] s at 32 points (docs/planning.md): with jerk limits one jump from
-    5 stalls at 15.78 s where doubling reaches 15.205 s; without, both reach 12.06 s, the
-    jump in 61 s and the continuation in 9.6 min."""
+    5 stalled at 15.78 s where doubling reached 15.2 s; without, both reach 12.06 s, and the
+    jump costs one family's solves instead of three."""
     return _halved(problem) if problem.jerk is not None else config.N_FREE
 
 
@@ -176,17 +176,18 @@ def _shortest(problem: DockingProblem, x0=None, *, smooth: bool = True) -> solve
     (:func:`dockjax.solve.shortest`; ``smooth=False``: the time programme's answer alone),
     from ``x0``. By default from the straight line at the shortest T the box allows, slowed
     until feasible; with more free control points than the paper's five, from the
-    shortest-time trajectory of a coarser family (:func:`_coarser`: the paper's, or with
-    jerk limits half as many points, recursively), written exactly in the finer family
-    (:func:`dockjax.solve.refine_family`), so that the SQP starts at a feasible trajectory
-    near its optimum. A move that some joint cannot make within the longest T, whatever
-    the trajectory (:func:`dockjax.solve.floor_infeasibility`), fails at once."""
+    shortest plan of a coarser family (:func:`_coarser`: the paper's, or with jerk limits
+    half as many points, recursively; the least jerk among its shortest trajectories),
+    written exactly in the finer family (:func:`dockjax.solve.refine_family`), so that the
+    SQP starts at a feasible, smooth trajectory near its optimum. A move that some joint
+    cannot make within the longest T, whatever the trajectory
+    (:func:`dockjax.solve.floor_infeasibility`), fails at once."""
     if (floor := solve.floor_infeasibility(problem)) is not None:
         raise floor
     if x0 is None and problem.n_control > config.N_FREE and not problem.reduced:
         coarse = problem.with_n_control(_coarser(problem))
         try:
-            x0 = solve.refine_family(problem, coarse, _shortest(coarse, smooth=False).x)
+            x0 = solve.refine_family(problem, coarse, _shortest(coarse).x)
         except PlanError:
             x0 = None
     line = solve.straight_line(problem, [problem.n_intervals * problem.interval_bounds[0]])[0]

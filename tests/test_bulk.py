@@ -50,13 +50,13 @@ def batches(run_once):
 
 
 @pytest.fixture(scope="module")
-def singles(batches, run_once):
-    """The single-move planner on each move (by weights, and of the duration), or its PlanError."""
+def singles(run_once):
+    """The single-move planner on each move (by weights, and of the duration), or its PlanError.
+    It does not wait for :func:`batches`, so two workers compute the two at once."""
     def make(_):
-        by_weights, _ = batches
         out = []
-        for i in range(len(by_weights)):
-            one = by_weights.move(i)
+        for s, g in zip(*_moves()):
+            one = DockingProblem(interval_bounds=PROBLEM.interval_bounds, start=s, goal=g)
             row = []
             for kw in ({}, {"duration": DURATION}):
                 try:
@@ -100,7 +100,7 @@ def test_every_plan_passes_the_dense_check(batches):
             assert result.T[i] == pytest.approx(np.sum(result.x[i][: one.n_intervals]), rel=1e-12)
 
 
-def test_shortest_times_match_the_single_move_planner(batches, singles):
+def test_shortest_times_match_the_single_move_planner(singles, batches):
     by_weights, _ = batches
     for i, (weights_row, _) in enumerate(singles):
         if isinstance(weights_row, PlanError):
@@ -109,7 +109,7 @@ def test_shortest_times_match_the_single_move_planner(batches, singles):
         assert by_weights.T_min[i] == pytest.approx(weights_row[2], rel=1e-3), f"move {i}"
 
 
-def test_no_chosen_plan_is_dominated_by_the_single_move_planners(batches, singles):
+def test_no_chosen_plan_is_dominated_by_the_single_move_planners(singles, batches):
     """The choice is Eq. 26 over a front of three points; where the two fronts differ the
     choices may differ, but the batched plan is never worse in both T and jerk by more than
     0.1 %."""
@@ -121,7 +121,7 @@ def test_no_chosen_plan_is_dominated_by_the_single_move_planners(batches, single
         assert not (T < by_weights.T[i] * (1 - 1e-3) and J < by_weights.jerk[i] * (1 - 1e-3)), f"move {i}"
 
 
-def test_plans_of_a_duration_take_it_exactly_and_match_the_single_move_planner(batches, singles):
+def test_plans_of_a_duration_take_it_exactly_and_match_the_single_move_planner(singles, batches):
     _, timed = batches
     assert timed.feasible.any()
     for i, (_, duration_row) in enumerate(singles):
