@@ -158,6 +158,26 @@ def test_a_plan_with_two_control_points_is_certified_by_the_reference():
     assert result.T == pytest.approx(T, rel=1e-9) and result.jerk == pytest.approx(jerk, rel=1e-9)
 
 
+def test_a_plan_with_more_points_than_the_papers_starts_from_its_plan_and_is_certified():
+    """Six free control points: the shortest time starts from the paper family's shortest
+    plan written exactly in the finer family, so it is certified by the reference and takes
+    at most the paper family's plan's time, but for the least-jerk slack of each family's
+    shortest plan (``solve.SHORTEST_SLACK``, twice) and the finer spans' certificate."""
+    from dockjax import solve
+
+    options = dict(rate=20.0, n_front=2, weights=(1.0, 0.0), check_sensitivities=False)
+    paper = plan(DockingProblem(interval_bounds=(1.0, 10.0)), **options)
+    p = DockingProblem(n_control=6, interval_bounds=(1.0, 10.0))
+    result = plan(p, **options)
+    assert result.x.shape == (43,)
+    _, feasible = R.dense_check(p, result.x[None], n_samples=20001)
+    assert feasible.all()
+    T, jerk = R.reference_objectives(result.x, p.start, p.goal, p.arm_distance)
+    assert result.T == pytest.approx(T, rel=1e-9) and result.jerk == pytest.approx(jerk, rel=1e-9)
+    T_paper, _ = R.reference_objectives(paper.x, p.start, p.goal, p.arm_distance)
+    assert T <= T_paper * (1 + solve.SHORTEST_SLACK) ** 2 * (1 + 1e-6)
+
+
 def _main(argv):
     text = io.StringIO()
     with contextlib.redirect_stdout(text):
