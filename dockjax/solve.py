@@ -576,10 +576,10 @@ def min_time(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int =
     ``min Σ h`` subject to the candidate constraints (:func:`candidate_limits`), in the unit
     box. ``x0`` is first made feasible by time scaling (:func:`certify_scaling`), so the
     search starts inside. ``restarts``: fresh solves after a stop without convergence or
-    outside the limits (None: :func:`family_restarts`). The answer is never slower than the certified start: when the
-    SQP ends slower, the start is returned, with multiplier estimates
-    (:func:`_multipliers_at`). Returns None when no certified trajectory is found (travel
-    infeasible from x0)."""
+    outside the limits (None: :func:`family_restarts`). The answer is never slower than the
+    certified start: when the SQP ends slower, the start is returned, with multiplier
+    estimates (:func:`_multipliers_at`). Returns None when no certified trajectory is found
+    (travel infeasible from x0)."""
     start = certify_scaling(problem, x0)
     if start is not None:
         x0 = start[0]
