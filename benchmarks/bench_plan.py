@@ -3,8 +3,8 @@ control points and jerk limits beside ruckig.
 
 python benchmarks/bench_plan.py [--repeats 7] [--replans 20] [--jerk-limits 25] [--n-front 8] [--peer-rate 10000]
                                 [--figure docs/plan_peers.png] [--best-known 40 20 600] [--controls 5 16 32]
-                                [--batches 1 10 100] [--batch-bounds 0.5 10] [--batch-slsqp 3]
-python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1e3 --controls 5 --batches 4 --batch-bounds 0.5 3 --batch-slsqp 1 # quick
+                                [--batches 1 10 100] [--batch-bounds 0.5 10] [--batch-slsqp 3] [--warmup 1]
+python benchmarks/bench_plan.py --repeats 1 --replans 1 --jerk-limits 2 --n-front 2 --peer-rate 1e3 --controls 5 --batches 4 --batch-bounds 0.5 3 --batch-slsqp 1 --warmup 0 # quick
 
 The default start and goal with paper Table 2 limits, knot intervals in [0.5, 10] s (the
 ``wide`` preset, where time is limited by the joints rather than by the box). Rows:
@@ -24,7 +24,7 @@ For each: T, the jerk objective of Eq. 25 (sampled at ``--peer-rate`` Hz, defaul
 the peers: the mean square of each joint's third derivative by finite differences of the
 sampled acceleration), the largest ratio of |velocity| and |acceleration| to its limit
 (sampled for the peers, the kernel's exact columns for dockjax), and the median time per
-call (warm). Then a :class:`dockjax.plan.Planner` replans ``--replans`` random start and
+call (warm: after ``--warmup`` untimed calls that compile; 0 times the first call). Then a :class:`dockjax.plan.Planner` replans ``--replans`` random start and
 goal poses (the defaults ± 5 mm, ± 0.1°, ± 1° roll): median and largest time per call, the
 median time of :func:`dockjax.plan.plan` on the same moves and how many of its choices the
 planner's matches (T and jerk within 0.1 %), and the largest gap of its
@@ -42,7 +42,7 @@ intervals): the default move with Table 2 limits, and the same move with jerk li
 same velocity, acceleration and jerk limits. Per n: T, T over ruckig's, the largest sampled
 |jerk| over its limit (at ``--peer-rate``) and the kernel's largest column (certified: at
 most 0), and the wall time of one warm :func:`dockjax.plan.plan` call (``--n-front`` caps,
-after one call that compiles) and its ratio to the first n's.
+after ``--warmup`` untimed calls) and its ratio to the first n's.
 
 The batch table (``--batches``, no values to skip it) plans B random moves (the default
 start and goal ± 5 mm, ± 0.1°, seeded) with knot intervals in ``--batch-bounds`` by
@@ -161,17 +161,23 @@ def _toppra_samples(traj, rate):
     return t, traj(t), traj(t, 1), traj(t, 2)
 
 
-def _timed_plan(problem, rate, n_front):
+def _warm(fn, warmup: int):
+    """``fn()`` called ``warmup`` times, untimed (the first call compiles)."""
+    for _ in range(warmup):
+        fn()
+
+
+def _timed_plan(problem, rate, n_front, warmup: int = 1):
     """The shortest-time plan of ``problem`` (its front at ``n_front`` caps) and the wall time
-    of a warm call (after one that compiles)."""
+    of a call after ``warmup`` untimed ones."""
     options = dict(weights=(1.0, 0.0), rate=rate, n_front=n_front, check_sensitivities=False)
-    plan(problem, **options)
+    _warm(lambda: plan(problem, **options), warmup)
     t = time.perf_counter()
     p = plan(problem, **options)
     return p, time.perf_counter() - t
 
 
-def n_control_table(n_controls, rate: float, skipped: list[str], n_front: int) -> None:
+def n_control_table(n_controls, rate: float, skipped: list[str], n_front: int, warmup: int = 1) -> None:
     """The last table of the module docstring."""
     print(f"\nshortest time with n free control points, default move, intervals in {N_CONTROL_BOUNDS} s; "
           f"jerk limits {JERK_LIMITS} per arm joint beside ruckig under the same limits\n")
@@ -180,9 +186,9 @@ def n_control_table(n_controls, rate: float, skipped: list[str], n_front: int) -
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     ruck, first = None, None
     for n in n_controls:
-        plain, t_plain = _timed_plan(DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n), rate, n_front)
+        plain, t_plain = _timed_plan(DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n), rate, n_front, warmup)
         problem = DockingProblem(interval_bounds=N_CONTROL_BOUNDS, n_control=n, jerk=JERK_LIMITS)
-        p, t_jerk = _timed_plan(problem, rate, n_front)
+        p, t_jerk = _timed_plan(problem, rate, n_front, warmup)
         lim = np.asarray(problem.limits)
         if ruck is None and _peer("ruckig", skipped) is not None:
             q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))
@@ -198,7 +204,7 @@ def n_control_table(n_controls, rate: float, skipped: list[str], n_front: int) -
         print(f"\nruckig's time-optimal move under the jerk limits: T = {ruck:.3f} s")
 
 
-def batch_table(batches, bounds, n_front: int, repeats: int, slsqp: int = 3) -> None:
+def batch_table(batches, bounds, n_front: int, repeats: int, slsqp: int = 3, warmup: int = 1) -> None:
     """The batch table (module docstring)."""
     problem = DockingProblem(interval_bounds=bounds)
     rng = np.random.default_rng(0)
@@ -222,7 +228,7 @@ def batch_table(batches, bounds, n_front: int, repeats: int, slsqp: int = 3) -> 
     for i in range(min(slsqp, len(res))):
         one = res.move(i)
         if i == 0:
-            plan(one, n_front=n_front, check_sensitivities=False)  # compile
+            _warm(lambda: plan(one, n_front=n_front, check_sensitivities=False), warmup)
         p, dt = _median_time(lambda: plan(one, n_front=n_front, check_sensitivities=False), 1)
         times.append(dt)
         if res.feasible[i]:
@@ -260,7 +266,11 @@ def main(argv: list[str] | None = None) -> None:
                     help="knot interval bounds of the batch table's moves (s)")
     ap.add_argument("--batch-slsqp", type=int, default=3,
                     help="moves of the batch table also planned by the SLSQP planner, one at a time")
+    ap.add_argument("--warmup", type=int, default=1,
+                    help="untimed calls of each dockjax plan before the timed ones (0: time the first, compiling call)")
     args = ap.parse_args(argv)
+    if args.warmup < 0:
+        ap.error(f"--warmup must be >= 0, got {args.warmup}")
     if min(args.repeats, args.replans, args.jerk_limits, args.batch_slsqp, *args.batches) < 1:
         ap.error("--repeats, --replans, --jerk-limits, --batches and --batch-slsqp must be >= 1")
     if not 0 < args.batch_bounds[0] < args.batch_bounds[1]:
@@ -270,7 +280,7 @@ def main(argv: list[str] | None = None) -> None:
     if not args.peer_rate > 0:
         ap.error(f"--peer-rate must be > 0, got {args.peer_rate}")
     if args.batches:
-        batch_table(args.batches, tuple(args.batch_bounds), args.n_front, args.repeats, args.batch_slsqp)
+        batch_table(args.batches, tuple(args.batch_bounds), args.n_front, args.repeats, args.batch_slsqp, args.warmup)
     problem = make_problem("wide")
     lim = np.asarray(problem.limits)
     q0 = np.asarray(inverse_kinematics(problem.start, problem.arm_distance))
@@ -279,7 +289,7 @@ def main(argv: list[str] | None = None) -> None:
 
     def dockjax_row(label, weights):
         options = dict(weights=weights, n_front=args.n_front, check_sensitivities=False)
-        plan(problem, **options)  # compile
+        _warm(lambda: plan(problem, **options), args.warmup)
         p, dt = _median_time(lambda: plan(problem, **options), args.repeats)
         g = by_kind(p.problem.evaluate(p.x[None], screen=False)[1][0])  # every column exact
         rows.append((label, p.T, p.jerk, float(np.max(g[:, 1] + 1)), float(np.max(g[:, 2] + 1)), dt))
@@ -308,7 +318,7 @@ def main(argv: list[str] | None = None) -> None:
                          f"T = {p_comp.T:.3f} s exactly")
     if _peer("toppra", notes) is not None:
         waypoints = _straight_joint_path(problem)
-        _toppra(waypoints, lim)
+        _warm(lambda: _toppra(waypoints, lim), args.warmup)
         out, dt = _median_time(lambda: _toppra(waypoints, lim), args.repeats)
         rows.append(("toppra, straight joint path", *_sampled_scores(*_toppra_samples(out, rate), lim), dt))
 
@@ -357,7 +367,7 @@ def main(argv: list[str] | None = None) -> None:
 
     if args.controls:
         skipped: list[str] = []
-        n_control_table(args.controls, rate, skipped, args.n_front)
+        n_control_table(args.controls, rate, skipped, args.n_front, args.warmup)
         for note in skipped:
             print(f"\n{note}")
 
