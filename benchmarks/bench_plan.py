@@ -20,16 +20,17 @@ The default start and goal with paper Table 2 limits, knot intervals in [0.5, 10
   straight pose line mapped to the joints (201 waypoints, a cubic spline through them; the
   timed call builds the spline and solves).
 
-For each: T, the jerk objective of Eq. 25 (sampled at ``--peer-rate`` Hz, default 10 kHz, for
-the peers: the mean square of each joint's third derivative by finite differences of the
+For each: T, the jerk objective of Eq. 25 (sampled at ``--peer-rate`` Hz, default 10 kHz,
+for the peers: the mean square of each joint's third derivative by finite differences of the
 sampled acceleration), the largest ratio of |velocity| and |acceleration| to its limit
 (sampled for the peers, the kernel's exact columns for dockjax), and the median time per
-call (warm: after ``--warmup`` untimed calls that compile; 0 times the first call). Then a :class:`dockjax.plan.Planner` replans ``--replans`` random start and
-goal poses (the defaults ± 5 mm, ± 0.1°, ± 1° roll): median and largest time per call, the
-median time of :func:`dockjax.plan.plan` on the same moves and how many of its choices the
-planner's matches (T and jerk within 0.1 %), and the largest gap of its
-jerk to the least jerk found at the same T from the straight line and from the planner's own
-answer (:func:`dockjax.solve.least_jerk`). The front figure
+call (warm: after ``--warmup`` untimed calls that compile; 0 times the first call). Then a
+:class:`dockjax.plan.Planner` replans ``--replans`` random start and goal poses (the
+defaults ± 5 mm, ± 0.1°, ± 1° roll): median and largest time per call, the median time of
+:func:`dockjax.plan.plan` on the same moves and how many of its choices the planner's
+matches (T and jerk within 0.1 %), and the largest gap of its jerk to the least jerk found
+at the same T from the straight line and from the planner's own answer
+(:func:`dockjax.solve.least_jerk`). The front figure
 (``--figure PATH``; ``--figure`` alone: ``plan_peers.png`` in a new temporary folder) shows
 the best-known front (``--best-known``: its time caps, SQP anchors and refinement steps per
 cap) with every peer's point. A peer that is not installed (ruckig and toppra come with the
@@ -322,8 +323,8 @@ def main(argv: list[str] | None = None) -> None:
         out, dt = _median_time(lambda: _toppra(waypoints, lim), args.repeats)
         rows.append(("toppra, straight joint path", *_sampled_scores(*_toppra_samples(out, rate), lim), dt))
 
-    print(f"default move, Table 2 limits, intervals in {problem.interval_bounds} s; median of {args.repeats} warm "
-          f"calls; peers sampled at {rate:g} Hz\n")
+    print(f"default move, Table 2 limits, intervals in {problem.interval_bounds} s; median of {args.repeats} "
+          f"calls after {args.warmup} untimed; peers sampled at {rate:g} Hz\n")
     print("| method | T [s] | jerk (Eq. 25) | max v/limit | max a/limit | time per call |")
     print("|---|---:|---:|---:|---:|---:|")
     for label, T, J, rv, ra, dt in rows:
