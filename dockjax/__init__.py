@@ -17,10 +17,10 @@ import importlib
 from .problem import DockingProblem
 from .version import __version__
 
-MODULES = ("algorithms", "best_known", "bspline", "checks", "cli", "config", "decoding", "devices", "extrema",
-           "fusion", "interop", "io", "jets", "kinematics", "limits", "metrics", "objectives", "optimize", "pareto",
-           "plan", "plots", "problem", "prng", "pytrees", "refine", "right_arm", "runtime", "select", "solve",
-           "stats", "sweep", "track", "trajectory", "version")
+MODULES = ("algorithms", "best_known", "bspline", "bulk", "checks", "cli", "config", "decoding", "devices",
+           "extrema", "fusion", "instances", "interop", "io", "jets", "kinematics", "limits", "metrics", "objectives",
+           "optimize", "pareto", "plan", "plots", "problem", "prng", "pytrees", "refine", "right_arm", "robot",
+           "runtime", "select", "solve", "sqp", "stats", "store", "sweep", "track", "trajectory", "version")
 """The public modules, each an attribute of the package."""
 
 NAMES = {"Result": "optimize", "Plan": "plan", "Planner": "plan", "PlanError": "solve", "Trajectory": "trajectory",

@@ -124,6 +124,12 @@ class SweepArgs:
     """Problem preset: paper (h in [3.5, 10] s) or wide (h in [0.5, 10] s)."""
     n_control: int = config.N_FREE
     """Free control points of the problem's quintic B-spline (1 to 64; the paper's 5)."""
+    instances: str | None = None
+    """Moves to study over: a TOML file of [[instance]] tables (start, goal; optionally arm_distance,
+    interval_bounds, n_control, limits) or random:N (N moves drawn around the paper's, seeded by --instance-seed);
+    every setting runs every seed on every instance, each scored against its own reference front. See docs/cli.md."""
+    instance_seed: int = 0
+    """Seed of the moves drawn by --instances random:N."""
     refine_steps: int = 0
     """Memetic finish: polish every run's final population with this many gradient-refinement steps (dockjax.refine;
     the algorithm column then reads e.g. imocs+refine). 0: off."""
@@ -189,6 +195,7 @@ def _param_specs(args: SweepArgs):
 def sweep(args: SweepArgs) -> int:
     """Validate (exit 2 before any compilation, without leaving a folder behind), run the
     missing chunks, report."""
+    from .instances import parse_instances
     from .sweep import ConfigError, claim_folder, make_config
 
     errors = [f"{name} must be >= 1, got {v}" for name, v in (("--workers", args.workers), ("--top", args.top))
@@ -215,13 +222,16 @@ def sweep(args: SweepArgs) -> int:
     try:
         try:
             specs = _param_specs(args)
+            instances = () if args.instances is None else parse_instances(
+                args.instances, seed=args.instance_seed, preset=args.preset, n_control=args.n_control)
             cfg, front = make_config(algorithms=args.algorithm, params=specs, pop=args.pop, iters=args.iters,
                                      budget=args.budget, design=args.design, samples=args.samples,
                                      design_seed=args.design_seed, seeds=args.seeds, preset=args.preset,
                                      refine_steps=args.refine_steps, chunk=args.chunk, reference=args.reference,
                                      reference_front=args.reference_front, race=args.race,
                                      race_min_seeds=args.race_min_seeds, race_alpha=args.race_alpha,
-                                     devices=_study_devices(args, n_devices), n_control=args.n_control)
+                                     devices=_study_devices(args, n_devices), n_control=args.n_control,
+                                     instances=instances)
         except ValueError as exc:
             raise ConfigError("; ".join([str(exc), *errors])) from None
         if errors:

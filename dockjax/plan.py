@@ -112,17 +112,7 @@ def load_limits(path: str | Path) -> dict:
         kinds = " nor ".join(k for k, _ in parsers)
         raise ValueError(f"limits file {path} is not valid {kinds if len(parsers) == 1 else 'neither ' + kinds} "
                          f"({'; '.join(errors)})")
-    if not isinstance(data, dict):
-        raise ValueError(f"limits file {path} must hold a table of limits")
-    allowed = {k.name for k in robot.LIMIT_KINDS} | {"home"}
-    unknown = sorted(set(data) - allowed)
-    if unknown:
-        raise ValueError(f"limits file {path}: unknown key(s) {unknown}; allowed {sorted(allowed)}")
-    for key, value in data.items():
-        if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                  for v in value):
-            raise ValueError(f"limits file {path}: {key} must be a list of numbers, got {value!r}")
-    return data
+    return robot.check_limit_table(data, f"limits file {path}")
 
 
 def _sampled_magnitude(problem: DockingProblem, s: dict, kind) -> np.ndarray:

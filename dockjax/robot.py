@@ -26,7 +26,7 @@ from .pytrees import pytree_dataclass
 
 __all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LEFT_ARM", "RIGHT_ARM", "LIMIT_KINDS",
            "BASE_KINDS", "DERIVATIVES", "POSE_ATTITUDE", "kinds_of", "column_names", "sampled_quantity", "by_kind",
-           "cabin_axis", "cabin_axis_jets", "arm_joints"]
+           "cabin_axis", "cabin_axis_jets", "arm_joints", "LIMIT_KEYS", "check_limit_table"]
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,27 @@ DERIVATIVES: tuple[str, ...] = ("position", "velocity", "acceleration", "jerk")
 
 BASE_KINDS = 3
 """The kinds every problem has (paper Table 2: travel, velocity, acceleration); jerk is optional."""
+
+
+LIMIT_KEYS: tuple[str, ...] = (*(k.name for k in LIMIT_KINDS), "home")
+"""Keys of a limit table (a limits file, an instance's ``limits``): one per kind of limit
+(4 or 8 numbers each, as :class:`dockjax.DockingProblem` takes them) and ``home`` (8 numbers)."""
+
+
+def check_limit_table(data: Any, where: str) -> dict:
+    """``data`` if it is a table of limit overrides (:data:`LIMIT_KEYS`, each a list of
+    numbers), else ValueError naming ``where`` and what is wrong. The lengths and values are
+    :class:`dockjax.DockingProblem`'s to check."""
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} must hold a table of limits")
+    unknown = sorted(set(data) - set(LIMIT_KEYS))
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {unknown}; allowed {sorted(LIMIT_KEYS)}")
+    for key, value in data.items():
+        if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                  for v in value):
+            raise ValueError(f"{where}: {key} must be a list of numbers, got {value!r}")
+    return data
 
 
 def kinds_of(n_kinds: int) -> tuple[LimitKind, ...]:

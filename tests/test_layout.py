@@ -152,3 +152,11 @@ def test_the_robot_geometry_lives_in_one_module():
     for m in ("limits", "right_arm", "objectives", "decoding", "trajectory"):
         assert "dockjax.kinematics" not in edges[f"dockjax.{m}"], m
         assert "dockjax.robot" in edges[f"dockjax.{m}"], m
+
+
+def test_every_module_of_the_package_is_reachable_from_its_namespace():
+    import dockjax
+
+    modules = {p.stem for p in PACKAGE.glob("*.py") if p.stem != "__init__"}
+    modules |= {p.parent.name for p in PACKAGE.glob("*/__init__.py")}
+    assert modules == set(dockjax.MODULES)

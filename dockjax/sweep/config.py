@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import math
 import warnings
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ import numpy as np
 
 from .. import checks, config
 from ..algorithms import get, make_params
+from ..instances import Instance, check_instances
 from ..io import check_input_file, load_npz
 from ..metrics import nondominated_points
 from ..problem import bucket_rows
@@ -31,7 +33,7 @@ from ..runtime import check_memory
 from .design import ParamSpec, Setting, build_settings, static_key
 
 __all__ = ["FORMAT", "PILOT_SEED0", "COLUMNS", "INDICATOR_COLUMNS", "ConfigError", "SweepConfig", "ChunkSpec",
-           "round_seeds", "plan_round", "pilot_spec", "load_front_file", "make_config"]
+           "round_seeds", "plan_round", "pilot_spec", "load_front_file", "make_config", "blocks_of"]
 
 FORMAT = "dockjax-sweep/3"
 PILOT_SEED0 = 1_000_000
@@ -39,7 +41,8 @@ PILOT_SEED0 = 1_000_000
 INDICATOR_COLUMNS = ("HV", "IGD", "IGD+", "GD", "SP", "ONVG")
 COLUMNS = ("setting", "algorithm", "pop", "iterations", "params", "seed", *INDICATOR_COLUMNS, "T_min", "T_max",
            "jerk_min", "jerk_max", "round", "chunk", "wall_s")
-"""Columns of ``runs.csv`` (one row per run; ``params`` is space-separated ``name=value`` pairs)."""
+"""Columns of ``runs.csv`` (one row per run; ``params`` is space-separated ``name=value`` pairs); a
+study over instances adds ``instance`` (the instance's name) after ``seed``."""
 
 
 class ConfigError(ValueError):
@@ -68,28 +71,54 @@ class SweepConfig:
     n_control: int = config.N_FREE
     """Free control points of the problem's spline (:class:`dockjax.DockingProblem`'s
     ``n_control``), written into the identity only when it is not the paper's 5."""
+    instances: tuple[Instance, ...] = ()
+    """The moves of a study over instances (:mod:`dockjax.instances`; empty: the preset's
+    own move), written into the identity only when given. Every setting runs every seed on
+    every instance; a block of the statistics is one (instance, seed) pair."""
 
     def identity(self) -> dict:
         return {"format": FORMAT, "preset": self.preset, "settings": [s.identity() for s in self.settings],
                 "seeds": self.seeds, "chunk": self.chunk, "reference": self.reference, "devices": self.devices,
                 "driver": self.driver, "race": self.race, "hv_ref": config.HV_REFERENCE,
-                "normalisation": "ideal and nadir of reference.npz's front",
-                **({"n_control": self.n_control} if self.n_control != config.N_FREE else {})}
+                "normalisation": ("ideal and nadir of each instance's reference front (references/)"
+                                  if self.instances else "ideal and nadir of reference.npz's front"),
+                **({"n_control": self.n_control} if self.n_control != config.N_FREE else {}),
+                **({"instances": [i.identity() for i in self.instances]} if self.instances else {})}
 
     @classmethod
     def from_identity(cls, d: dict) -> "SweepConfig":
         """The configuration of a stored identity (``config.json``'s ``identity``)."""
+        instances = tuple(Instance(i["name"], {k: v for k, v in i.items() if k != "name"})
+                          for i in d.get("instances", ()))
         return cls(settings=tuple(Setting.from_identity(s) for s in d["settings"]), preset=d["preset"],
                    seeds=int(d["seeds"]), chunk=int(d["chunk"]), reference=d["reference"], race=d["race"],
-                   devices=d["devices"], driver=d["driver"], n_control=int(d.get("n_control", config.N_FREE)))
+                   devices=d["devices"], driver=d["driver"], n_control=int(d.get("n_control", config.N_FREE)),
+                   instances=instances)
 
     @property
     def algorithms(self) -> list[str]:
         return list(dict.fromkeys(s.algorithm for s in self.settings))
 
+    @property
+    def n_instances(self) -> int:
+        """Moves of the study: its instances, or 1 (the preset's move)."""
+        return max(1, len(self.instances))
+
+    @property
+    def n_blocks(self) -> int:
+        """Blocks of the statistics: (instance, seed) pairs, ``n_instances × seeds``."""
+        return self.n_instances * self.seeds
+
     def n_runs(self) -> int:
-        """Runs of the full grid (every setting × every seed)."""
-        return len(self.settings) * self.seeds
+        """Runs of the full grid (every setting × every seed × every instance)."""
+        return len(self.settings) * self.n_blocks
+
+
+def blocks_of(cfg: SweepConfig, columns: dict) -> np.ndarray:
+    """The block of each run of ``columns`` (a chunk's or the table's): ``instance × seeds +
+    seed`` (the seed alone without instances), the column of the statistics' matrices."""
+    seed = np.asarray(columns["seed"], np.int64)
+    return np.asarray(columns.get("instance", np.zeros_like(seed)), np.int64) * cfg.seeds + seed
 
 
 @dataclass(frozen=True)
@@ -114,6 +143,12 @@ class ChunkSpec:
     driver: str = "scan"
     n_control: int = config.N_FREE
     """Free control points of the problem's spline."""
+    instance: int = -1
+    """The instance the chunk's runs solve (its index in the study's instances), -1 for the
+    preset's own move."""
+    instance_fields: str = ""
+    """That instance's :meth:`dockjax.instances.Instance.identity` as JSON ("" for the
+    preset's move): a chunk carries its problem to wherever it runs."""
 
     def params(self) -> Any:
         """The algorithm's ``Params`` of the chunk: every hyper-parameter the settings name
@@ -157,13 +192,14 @@ def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds:
     racing, chunks of exactly ``chunk`` runs in a race (one compiled shape for every
     round). Short chunks are padded with repeats of their own runs, which are dropped."""
     groups: dict[tuple, list[tuple[int, int]]] = {}
-    for i, s in enumerate(cfg.settings):
-        if alive[i]:
-            for seed in seeds:
-                groups.setdefault(static_key(s), []).append((i, seed))
+    for k in _instance_indices(cfg):
+        for i, s in enumerate(cfg.settings):
+            if alive[i]:
+                for seed in seeds:
+                    groups.setdefault((static_key(s), k), []).append((i, seed))
     chunks: list[ChunkSpec] = []
     rows = refine_rows(cfg)
-    for key, runs in groups.items():
+    for (key, instance), runs in groups.items():
         algorithm, pop, iters, _, refine_steps = key
         size = cfg.chunk if cfg.race is not None else _chunk_size(len(runs), cfg.chunk)
         for k in range(0, len(runs), size):
@@ -174,13 +210,24 @@ def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds:
                                     seeds=tuple(s for _, s in padded),
                                     hyper=tuple(cfg.settings[i].params for i, _ in padded), n_real=len(real),
                                     refine_steps=refine_steps, refine_rows=rows if refine_steps else None,
-                                    driver=cfg.driver, n_control=cfg.n_control))
+                                    driver=cfg.driver, n_control=cfg.n_control, instance=instance,
+                                    instance_fields=_instance_json(cfg, instance)))
     return chunks
 
 
-def pilot_spec(cfg: SweepConfig) -> ChunkSpec:
-    """The reference pilot: one chunk of the first algorithm at its default hyper-parameters,
-    its largest population and its largest iteration count, seeds from :data:`PILOT_SEED0`."""
+def _instance_indices(cfg: SweepConfig) -> range:
+    """Indices of the study's instances, or ``range(-1, 0)`` (the preset's own move)."""
+    return range(len(cfg.instances)) if cfg.instances else range(-1, 0)
+
+
+def _instance_json(cfg: SweepConfig, instance: int) -> str:
+    return json.dumps(cfg.instances[instance].identity(), sort_keys=True) if instance >= 0 else ""
+
+
+def pilot_spec(cfg: SweepConfig, instance: int = -1) -> ChunkSpec:
+    """The reference pilot (of ``instance``, -1 the preset's move): one chunk of the first
+    algorithm at its default hyper-parameters, its largest population and its largest
+    iteration count, seeds from :data:`PILOT_SEED0`."""
     first = cfg.settings[0]
     mine = [s for s in cfg.settings if s.algorithm == first.algorithm]
     pop, iters = max(s.pop for s in mine), max(s.iters for s in mine)
@@ -189,7 +236,7 @@ def pilot_spec(cfg: SweepConfig) -> ChunkSpec:
                      settings=(-1,) * size, seeds=tuple(PILOT_SEED0 + i for i in range(size)),
                      hyper=((),) * size, n_real=size, refine_steps=first.refine_steps,
                      refine_rows=refine_rows(cfg) if first.refine_steps else None, driver=cfg.driver,
-                     n_control=cfg.n_control)
+                     n_control=cfg.n_control, instance=instance, instance_fields=_instance_json(cfg, instance))
 
 
 REFINE_ROWS = 256
@@ -294,11 +341,14 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
                 refine_steps: int = 0, chunk: int = config.SWEEP_CHUNK, reference: str = "best-known",
                 reference_front=None, race: bool = False, race_min_seeds: int = 5, race_alpha: float = 0.05,
                 devices: int | None = None, best_known: dict | None = None,
-                driver: str = "scan", n_control: int = config.N_FREE) -> tuple[SweepConfig, np.ndarray | None]:
+                driver: str = "scan", n_control: int = config.N_FREE,
+                instances: Sequence[Instance] = ()) -> tuple[SweepConfig, np.ndarray | None]:
     """Validate a sweep (nothing is written, nothing is compiled) and build its
     configuration. ``reference``: ``"best-known"`` (default; ``best_known`` overrides
     settings of :data:`dockjax.config.BEST_KNOWN`), ``"pilot"`` or ``"file"``
-    (``reference_front`` a path). Returns the configuration and the loaded reference front
+    (``reference_front`` a path). ``instances``: the moves of a study over instances
+    (:mod:`dockjax.instances`; each gets its own best-known or pilot reference; not with a
+    reference file or a race). Returns the configuration and the loaded reference front
     (None unless read from a file). Raises ConfigError with every problem on one line,
     naming the options."""
     errors: list[str] = []
@@ -312,7 +362,10 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
     if errors:
         raise ConfigError("; ".join(errors))
     params = list(params)
-    errors += size_errors(algorithms, params, pop, iters, budget, samples, seeds, chunk)
+    instances = tuple(instances)
+    if len(instances) > 1_000:
+        errors.append(f"--instances gives {len(instances)} moves, more than 1000")
+    errors += size_errors(algorithms, params, pop, iters, budget, samples, seeds * max(1, len(instances)), chunk)
     if preset not in config.PRESETS:
         errors.append(f"--preset must be one of {', '.join(config.PRESETS)}, got {preset!r}")
     try:
@@ -363,6 +416,16 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
     else:
         errors.append(f"--reference must be best-known, pilot or file, got {reference!r}")
         ref = {}
+    if instances and (reference == "file" or reference_front is not None):
+        errors.append("--reference-front is one move's front: a study over --instances takes each instance's own "
+                      "reference (--reference best-known or pilot)")
+    if instances and race:
+        errors.append("--race over --instances is not available: run every setting on every instance (no --race)")
+    if instances and not errors:
+        try:
+            check_instances(instances, preset, n_control)
+        except ValueError as exc:
+            errors.append(f"--instances: {exc}")
     settings: list[Setting] = []
     if not errors:
         try:
@@ -374,5 +437,5 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
         raise ConfigError("; ".join(errors))
     cfg = SweepConfig(settings=tuple(settings), preset=preset, seeds=seeds, chunk=chunk, reference=ref,
                       race={"min_seeds": race_min_seeds, "alpha": race_alpha} if race else None,
-                      devices=devices, driver=driver, n_control=int(n_control))
+                      devices=devices, driver=driver, n_control=int(n_control), instances=instances)
     return cfg, front

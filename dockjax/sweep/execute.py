@@ -4,6 +4,7 @@ on a Dask cluster (:class:`DaskBackend`)."""
 
 from __future__ import annotations
 
+import json
 import logging
 import signal
 import time
@@ -14,27 +15,42 @@ import jax
 import numpy as np
 
 from .. import config, metrics
+from ..instances import Instance
 from ..metrics import nondominated_points
 from ..optimize import optimize, refine_result
 from ..problem import make_problem
 from ..runtime import enable_compilation_cache
 from .config import INDICATOR_COLUMNS, ChunkSpec
 
-__all__ = ["run_chunk", "problem_of", "LocalBackend", "DaskBackend"]
+__all__ = ["run_chunk", "problem_of", "reference_of", "LocalBackend", "DaskBackend"]
 
 
 @lru_cache(maxsize=None)
-def problem_of(preset: str, n_control: int = config.N_FREE):
+def problem_of(preset: str, n_control: int = config.N_FREE, instance_fields: str = ""):
     """The problem of a preset with ``n_control`` free control points
-    (:func:`dockjax.problem.make_problem`), made once per process."""
-    return make_problem(preset, n_control=n_control)
+    (:func:`dockjax.problem.make_problem`), or of an instance laid over it
+    (``instance_fields``: :meth:`dockjax.instances.Instance.identity` as JSON,
+    :attr:`ChunkSpec.instance_fields`), made once per process."""
+    if not instance_fields:
+        return make_problem(preset, n_control=n_control)
+    d = json.loads(instance_fields)
+    return Instance(d.pop("name"), d).problem(preset, n_control)
+
+
+def reference_of(references, instance: int) -> dict | None:
+    """The reference of ``instance`` (-1: the preset's move) among ``references``: one
+    reference dict, a sequence of them (one per instance), or None."""
+    if references is None or isinstance(references, dict):
+        return references
+    return references[max(instance, 0)]
 
 
 def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | None = None
               ) -> dict[str, np.ndarray]:
     """Run one chunk (one compiled vmapped call) and score its real runs.
 
-    ``reference``: {"front", "ideal", "nadir", "hv_ref"} or None (no indicators; the pilot).
+    ``reference``: {"front", "ideal", "nadir", "hv_ref"} or None (no indicators; the pilot),
+    or one such dict per instance of the study (the chunk's own is used).
     ``devices``: local devices the runs are sharded over (default all; see
     :func:`dockjax.optimize.optimize`: the numbers may depend on the count).
     Returns the chunk's table columns (one entry per real run), ``history`` (runs,
@@ -45,11 +61,12 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
     """
     t0 = time.perf_counter()
     hv_ref = scale = None
+    reference = reference_of(reference, spec.instance)
     if reference is not None:
         ideal, nadir = np.asarray(reference["ideal"]), np.asarray(reference["nadir"])
         span = np.where(nadir > ideal, nadir - ideal, 1.0)
         hv_ref, scale = ideal + float(reference["hv_ref"]) * span, float(np.prod(span))
-    problem = problem_of(spec.preset, spec.n_control)
+    problem = problem_of(spec.preset, spec.n_control, spec.instance_fields)
     r = optimize(spec.algorithm, problem, params=spec.params(), seeds=np.asarray(spec.seeds, np.int64),
                  n_iter=spec.iters, hv_ref=hv_ref, driver=spec.driver, devices=devices)
     if spec.refine_steps:
@@ -66,6 +83,7 @@ def run_chunk(spec: ChunkSpec, reference: dict | None = None, *, devices: int | 
         "seed": np.asarray(spec.seeds[:n], np.int64),
         "round": np.full(n, spec.round, np.int64),
         "chunk": np.full(n, spec.index, np.int64),
+        **({"instance": np.full(n, spec.instance, np.int64)} if spec.instance >= 0 else {}),
     }
     ext = np.array([[f[:, 0].min(), f[:, 0].max(), f[:, 1].min(), f[:, 1].max()] if len(f)
                     else [np.nan] * 4 for f in fronts]).reshape(n, 4)

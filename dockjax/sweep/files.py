@@ -17,10 +17,17 @@ from pathlib import Path
 import numpy as np
 
 from ..io import DamagedFileError, atomic_savez, load_npz
-from .config import ChunkSpec, SweepConfig, plan_round, round_seeds
+from .config import ChunkSpec, SweepConfig, blocks_of, plan_round, round_seeds
 from .race import decide
 
-__all__ = ["DamagedFileError", "load_npz", "study_hash", "write_chunk", "read_chunk", "finished_chunks"]
+__all__ = ["DamagedFileError", "load_npz", "study_hash", "write_chunk", "read_chunk", "finished_chunks",
+           "reference_path"]
+
+
+def reference_path(out: Path, instance: int = -1) -> Path:
+    """Where a study keeps the reference of ``instance`` (-1: the preset's own move):
+    ``reference.npz``, or ``references/instance-<k>.npz`` in a study over instances."""
+    return Path(out) / "reference.npz" if instance < 0 else Path(out) / "references" / f"instance-{instance:05d}.npz"
 
 
 def study_hash(cfg: SweepConfig) -> str:
@@ -54,6 +61,9 @@ def read_chunk(path: Path, cfg: SweepConfig, spec: ChunkSpec) -> tuple[dict[str,
         return None, f"holds round {rounds[:1].tolist()} chunk {index[:1].tolist()}, not this place's"
     if tuple(settings.tolist()) != spec.settings[:spec.n_real] or tuple(seeds.tolist()) != spec.seeds[:spec.n_real]:
         return None, "holds other runs than this chunk's"
+    instance = z["instance"] if "instance" in z else np.full(len(seeds), -1)
+    if not np.all(instance == spec.instance):
+        return None, f"holds instance {instance[:1].tolist()}, not this chunk's {spec.instance}"
     return z, None
 
 
@@ -65,7 +75,7 @@ def finished_chunks(cfg: SweepConfig, out: Path) -> list[tuple[ChunkSpec, dict[s
     study is not finished: run it again)."""
     chunks = Path(out) / "chunks"
     alive = np.ones(len(cfg.settings), bool)
-    scores = np.full((len(cfg.settings), cfg.seeds), np.nan)
+    scores = np.full((len(cfg.settings), cfg.n_blocks), np.nan)
     found: list[tuple[ChunkSpec, dict[str, np.ndarray]]] = []
     done, r = 0, 0
     while True:
@@ -77,7 +87,7 @@ def finished_chunks(cfg: SweepConfig, out: Path) -> list[tuple[ChunkSpec, dict[s
             if data is None:
                 raise RuntimeError(f"{chunks / spec.name} {why or 'is missing'}: the study is not finished; run its "
                                    "command again to complete it")
-            scores[data["setting"], data["seed"]] = data["HV"]
+            scores[data["setting"], blocks_of(cfg, data)] = data["HV"]
             found.append((spec, data))
         done = seeds.stop
         if cfg.race is None:

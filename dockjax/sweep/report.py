@@ -33,9 +33,9 @@ from scipy.stats import rankdata
 
 from .. import plots, stats
 from ..io import atomic_savez, atomic_write_text, write_set
-from .config import COLUMNS, INDICATOR_COLUMNS, SweepConfig, round_seeds
+from .config import COLUMNS, INDICATOR_COLUMNS, SweepConfig, blocks_of, round_seeds
 from .design import symbol
-from .files import finished_chunks, load_npz
+from .files import finished_chunks, load_npz, reference_path
 from .race import replay
 
 __all__ = ["Study", "Summary", "load_table", "load_config", "load_study", "summarise", "report", "write_table",
@@ -64,13 +64,13 @@ def load_table(out: Path, cfg: SweepConfig | None = None
                ) -> tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
     """The runs of the study in ``out`` (its configuration ``cfg``, default the folder's),
     from the chunk files of its plan only (:func:`dockjax.sweep.files.finished_chunks`:
-    a stray or foreign file is not read), sorted by (setting, seed): the columns, each
+    a stray or foreign file is not read), sorted by (setting, instance, seed): the columns, each
     run's front F (k, 2) and its trajectories X (k, n_var), and each run's anytime
     hypervolume (iterations,). Raises RuntimeError when the study is not finished."""
     cfg = load_config(out) if cfg is None else cfg
     parts = [data for _, data in finished_chunks(cfg, Path(out))]
-    keys = ("setting", "algorithm", "seed", "round", "chunk", *INDICATOR_COLUMNS, "T_min", "T_max", "jerk_min",
-            "jerk_max", "wall_s")
+    keys = ("setting", "algorithm", "seed", *(("instance",) if cfg.instances else ()), "round", "chunk",
+            *INDICATOR_COLUMNS, "T_min", "T_max", "jerk_min", "jerk_max", "wall_s")
     cols = {k: np.concatenate([p[k] for p in parts]) for k in keys}
 
     def split(name):
@@ -78,15 +78,35 @@ def load_table(out: Path, cfg: SweepConfig | None = None
 
     fronts, fronts_X = split("front_F"), split("front_X")
     history = [h for p in parts for h in p["history"]]
-    order = np.lexsort((cols["seed"], cols["setting"]))
+    order = np.lexsort((cols["seed"], cols.get("instance", cols["seed"]), cols["setting"]))
     return ({k: v[order] for k, v in cols.items()}, [fronts[i] for i in order], [fronts_X[i] for i in order],
             [history[i] for i in order])
 
 
 def _matrix(cfg: SweepConfig, cols, column: str) -> np.ndarray:
-    M = np.full((len(cfg.settings), cfg.seeds), np.nan)
-    M[cols["setting"], cols["seed"]] = cols[column]
+    """``column`` as a (settings, blocks) matrix (:func:`dockjax.sweep.config.blocks_of`);
+    NaN where a run is missing."""
+    M = np.full((len(cfg.settings), cfg.n_blocks), np.nan)
+    M[cols["setting"], blocks_of(cfg, cols)] = cols[column]
     return M
+
+
+def _blocks_word(cfg: SweepConfig, n: int) -> str:
+    """``"12 seeds"``, or over instances ``"12 blocks (instance, seed)"``."""
+    return f"{n} blocks (instance, seed)" if cfg.instances else f"{n} seeds"
+
+
+def per_instance(study: "Study", settings: Sequence[int], column: str = "HV") -> np.ndarray:
+    """Median of ``column`` per setting (rows, in the order of ``settings``) and instance
+    (columns) of a study over instances: (len(settings), instances)."""
+    cols = study.cols
+    out = np.full((len(settings), study.cfg.n_instances), np.nan)
+    for a, i in enumerate(settings):
+        for k in range(study.cfg.n_instances):
+            v = cols[column][(cols["setting"] == i) & (cols["instance"] == k)]
+            v = v[np.isfinite(v)]
+            out[a, k] = np.median(v) if v.size else np.nan
+    return out
 
 
 @dataclass
@@ -102,9 +122,10 @@ class Summary:
 @dataclass
 class Study:
     """A finished sweep folder, loaded: what its report (and an extension) is made from.
-    Runs are sorted by (setting, seed): ``cols`` the table's columns, ``fronts`` /
+    Runs are sorted by (setting, instance, seed): ``cols`` the table's columns, ``fronts`` /
     ``fronts_X`` each run's front (k, 2) and its trajectories (k, n_var), ``history`` each
-    run's anytime hypervolume; ``ref`` the folder's reference (``reference.npz``)."""
+    run's anytime hypervolume; ``ref`` the folder's reference (``reference.npz``; over
+    instances the first instance's, which the figures of fronts show)."""
 
     out: Path
     cfg: SweepConfig
@@ -125,7 +146,8 @@ def load_study(out: Path) -> Study:
     out = Path(out)
     cfg = load_config(out)
     cols, fronts, fronts_X, history = load_table(out, cfg)
-    return Study(out, cfg, cols, fronts, fronts_X, history, load_npz(out / "reference.npz"), summarise(cfg, cols))
+    ref = load_npz(reference_path(out, 0 if cfg.instances else -1))
+    return Study(out, cfg, cols, fronts, fronts_X, history, ref, summarise(cfg, cols))
 
 
 def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
@@ -181,16 +203,16 @@ def _verdict(cfg: SweepConfig, summary: Summary) -> list[str]:
     idx = np.flatnonzero(summary.finalists)
     best = cfg.settings[idx[c.best]]
     tied = [cfg.settings[idx[j]] for j in np.flatnonzero(c.tied) if j != c.best]
-    n_seeds = int(summary.rows[idx[c.best]]["runs"])
+    n_blocks = int(summary.rows[idx[c.best]]["runs"])
     fp = "n/a" if math.isnan(c.friedman_p) else f"{c.friedman_p:.3g}"
     lines = [f"Best by median HV: **{best.label}** (median {summary.rows[idx[c.best]]['HV_median']:.4f} over "
-             f"{n_seeds} seeds). Friedman test across the {len(idx)} compared settings: p = {fp}."]
+             f"{_blocks_word(cfg, n_blocks)}). Friedman test across the {len(idx)} compared settings: p = {fp}."]
     if len(tied) == len(idx) - 1 and tied:
         advice = ("A race with a larger seed budget (--seeds) may separate them." if cfg.race else
-                  "Run more seeds, or race them (--race).")
-        lines.append(f"No setting is significantly worse than it at {n_seeds} seeds (Wilcoxon signed-rank against "
-                     f"the best, Holm's correction, α = {c.alpha:g}): all {len(idx)} are tied, and this study "
-                     f"cannot name a winner. {advice}")
+                  "Run more seeds or instances." if cfg.instances else "Run more seeds, or race them (--race).")
+        lines.append(f"No setting is significantly worse than it at {_blocks_word(cfg, n_blocks)} (Wilcoxon "
+                     f"signed-rank against the best, Holm's correction, α = {c.alpha:g}): all {len(idx)} are tied, "
+                     f"and this study cannot name a winner. {advice}")
     elif tied:
         lines.append(f"{len(tied)} other setting(s) are not significantly worse (Wilcoxon signed-rank against the "
                      f"best, Holm's correction, α = {c.alpha:g}) and tie with it: "
@@ -242,7 +264,10 @@ def _figures(study: Study, out: Path) -> list[Path]:
     ranked = [r["setting"] for r in rows if r["runs"]]
     # anytime hypervolume of the leading settings and the default
     default = next((i for i, s in enumerate(cfg.settings) if s.is_default() and summary.rows[i]["runs"]), None)
-    shown = list(dict.fromkeys(ranked[:TOP_VIEWS] + ([default] if default is not None else [])))
+    shown = _leading(study, rows)
+    # fronts are drawn in objective units: over instances, the first instance's runs only
+    on_view = (cols["instance"] == 0) if cfg.instances else np.ones(len(cols["setting"]), bool)
+    view = f" ({cfg.instances[0].name})" if cfg.instances else ""
     curves = {}
     for i in shown:
         sel = np.flatnonzero(cols["setting"] == i)
@@ -256,7 +281,7 @@ def _figures(study: Study, out: Path) -> list[Path]:
     if other is not None:
         sets = {}
         for i in (best, other):
-            runs = [fronts[k] for k in np.flatnonzero(cols["setting"] == i) if len(fronts[k])]
+            runs = [fronts[k] for k in np.flatnonzero((cols["setting"] == i) & on_view) if len(fronts[k])]
             if runs:
                 sets[i] = np.concatenate([np.column_stack([f, np.full(len(f), n + 1)]) for n, f in enumerate(runs)])
         if len(sets) == 2:
@@ -309,12 +334,43 @@ def _figures(study: Study, out: Path) -> list[Path]:
                                              title="hypervolume against population size"))
     worst = ranked[-1]
     groups_f = {f"{what}: {cfg.settings[i].label} (HV {summary.rows[i]['HV_median']:.3f})":
-                [fronts[k] for k in np.flatnonzero(cols["setting"] == i)]
+                [fronts[k] for k in np.flatnonzero((cols["setting"] == i) & on_view)]
                 for i, what in ((best, "best"), (worst, "worst"))[: 1 if best == worst else 2]}
     written.append(plots.plot_front_groups(groups_f, ref["front"], out / "fronts_best_worst.png",
                                            reference_label="reference front (fixed at sweep start)",
-                                           title="fronts of every seed, best and worst setting by median HV"))
+                                           title="fronts of every seed, best and worst setting by median HV" + view))
+    if cfg.instances:  # each leading setting's HV on every instance
+        k = np.arange(cfg.n_instances, dtype=float)
+        data = {}
+        for i in shown:
+            per = [cols["HV"][(cols["setting"] == i) & (cols["instance"] == j)] for j in range(cfg.n_instances)]
+            data[cfg.settings[i].label] = (k, np.array([np.median(h) for h in per]),
+                                           np.array([np.percentile(h, [25, 75]) for h in per]).reshape(-1, 2))
+        written.append(plots.plot_median_iqr(data, out / "hv_per_instance.png", xlabel="instance (index)",
+                                             ylabel="hypervolume (median, bar = IQR over seeds)",
+                                             title="hypervolume per instance, leading settings"))
     return written
+
+
+def _leading(study: Study, rows: list[dict]) -> list[int]:
+    """The settings the anytime view and the per-instance view show: the leading ones by
+    median HV (:data:`TOP_VIEWS`) and the default."""
+    cfg, summary = study.cfg, study.summary
+    ranked = [r["setting"] for r in rows if r["runs"]]
+    default = next((i for i, s in enumerate(cfg.settings) if s.is_default() and summary.rows[i]["runs"]), None)
+    return list(dict.fromkeys(ranked[:TOP_VIEWS] + ([default] if default is not None else [])))
+
+
+def _instance_section(study: Study, rows: list[dict]) -> list[str]:
+    """report.md's per-instance table: the leading settings' median HV on each instance."""
+    cfg = study.cfg
+    shown = _leading(study, rows)
+    M = per_instance(study, shown)
+    lines = ["## Per instance", "", f"Median HV over the {cfg.seeds} seeds of each instance (normalised by the "
+             "instance's own reference front), for the leading settings and the default:", ""]
+    header = ["instance", *[cfg.settings[i].label for i in shown]]
+    body = [[inst.name, *[_num(v, ".4f") for v in M[:, k]]] for k, inst in enumerate(cfg.instances)]
+    return lines + markdown_table(header, body) + [""]
 
 
 Extension = Callable[[Study, Path, Callable[[str], None]], tuple[list[str], list[Path]]]
@@ -353,29 +409,47 @@ def _report_files(study: Study, folder: Path, extensions, log) -> list[Path]:
     table = {**cols, "pop": np.array([cfg.settings[i].pop for i in cols["setting"]]),
              "iterations": np.array([cfg.settings[i].iters for i in cols["setting"]]),
              "params": np.array([" ".join(f"{k}={v:g}" for k, v in cfg.settings[i].params) for i in cols["setting"]])}
-    written.append(write_table([{c: table[c][i] for c in COLUMNS} for i in range(len(cols["setting"]))], COLUMNS,
+    columns = COLUMNS
+    if cfg.instances:  # the instance's name after the seed
+        table["instance"] = np.array([cfg.instances[k].name for k in cols["instance"]])
+        columns = COLUMNS[:COLUMNS.index("seed") + 1] + ("instance",) + COLUMNS[COLUMNS.index("seed") + 1:]
+    written.append(write_table([{c: table[c][i] for c in columns} for i in range(len(cols["setting"]))], columns,
                                folder / "runs.csv"))
     offsets = np.cumsum([0] + [len(f) for f in fronts])
     written.append(atomic_savez(folder / "fronts.npz", {"F": np.concatenate(fronts + [np.zeros((0, 2))]),
                                                          "X": np.concatenate(study.fronts_X), "offsets": offsets,
-                                                         "setting": cols["setting"], "seed": cols["seed"]}))
+                                                         "setting": cols["setting"], "seed": cols["seed"],
+                                                         **({"instance": cols["instance"]} if cfg.instances else {})}))
     rows = _order(summary.rows)
     written.append(write_table(rows, SUMMARY_COLUMNS, folder / "summary.csv"))
     verdict = _verdict(cfg, summary)
     source = str(ref.get("source", "pilot"))
-    note = (f"Indicators on objectives normalised by the fixed reference front of reference.npz ({source}, "
-            f"{len(ref['front'])} points; HV reference point {float(ref['hv_ref'])}). Intervals: percentile "
-            "bootstrap of the median, 95 %.")
+    if cfg.instances:
+        note = (f"Indicators on objectives normalised by each instance's own reference front, fixed before the first "
+                f"run (references/, {source}; HV reference point {float(ref['hv_ref'])}); a block of the Friedman "
+                "and Wilcoxon tests is one (instance, seed) pair. Intervals: percentile bootstrap of the median over "
+                "the blocks, 95 %.")
+    else:
+        note = (f"Indicators on objectives normalised by the fixed reference front of reference.npz ({source}, "
+                f"{len(ref['front'])} points; HV reference point {float(ref['hv_ref'])}). Intervals: percentile "
+                "bootstrap of the median, 95 %.")
     written.append(atomic_write_text(folder / "summary.md", "\n".join(_md_table(rows)) + "\n\n" + note + "\n"))
     figures = _figures(study, folder)
     written += figures
+    where = (f"{cfg.n_instances} instances (moves; the {cfg.preset} preset's limits and bounds unless an instance "
+             f"gives its own)" if cfg.instances else f"the {cfg.preset} preset")
+    refs = (f"each instance's own ({source}), fixed before the first run" if cfg.instances else
+            f"{source}, {len(ref['front'])} points, fixed before the first run")
     md = ["# Sweep report", "",
-          f"{len(cfg.settings)} settings of {', '.join(cfg.algorithms)} on the {cfg.preset} preset, "
+          f"{len(cfg.settings)} settings of {', '.join(cfg.algorithms)} on {where}, "
           f"{len(cols['setting'])} runs"
           + (f" (race over at most {cfg.seeds} seeds; the full grid would be {cfg.n_runs()} runs, "
-             f"{100 * len(cols['setting']) / cfg.n_runs():.0f} % of it)" if cfg.race else f", {cfg.seeds} seeds each")
-          + f". Reference front: {source}, {len(ref['front'])} points, fixed before the first run.", "",
+             f"{100 * len(cols['setting']) / cfg.n_runs():.0f} % of it)" if cfg.race else
+             f", {cfg.seeds} seeds each" + (" on every instance" if cfg.instances else ""))
+          + f". Reference front: {refs}.", "",
           "## Verdict", "", *verdict, "", "## Settings", "", *_md_table(rows), "", note, ""]
+    if cfg.instances:
+        md += _instance_section(study, rows)
     if summary.rounds:
         md += ["## Race", "", "| round | seeds so far | settings left |", "|---|---:|---:|"]
         done = 0

@@ -20,12 +20,12 @@ from tqdm import tqdm
 
 from ..io import TEMP_PREFIX, FolderBusyError, FolderLock, atomic_write_text, make_folders
 from ..version import __version__
-from .config import ConfigError, SweepConfig, plan_round, round_seeds
+from .config import ConfigError, SweepConfig, blocks_of, plan_round, round_seeds
 from .design import Setting
 from .execute import DaskBackend, LocalBackend, run_chunk
 from .files import read_chunk, write_chunk
 from .race import decide
-from .reference import fixed_reference
+from .reference import fixed_references
 
 __all__ = ["Claim", "claim_folder", "prepare_folder", "remove_created", "run_sweep"]
 
@@ -48,6 +48,14 @@ def _diff(a: dict, b: dict) -> list[str]:
                 return f"{n} CPU device(s)" if n is not None else "Dask workers (--backend dask)"
             out.append(f"devices: the folder's runs were made on {what(x)}, this command runs them on {what(y)} "
                        "(the numbers depend on it)")
+        elif k == "instances":
+            def names(v):
+                v = v or []
+                shown = ", ".join(d["name"] for d in v[:3]) + (", ..." if len(v) > 3 else "")
+                return f"{len(v)} ({shown})" if v else "none (the preset's move)"
+            same = [d["name"] for d in x or []] == [d["name"] for d in y or []]
+            out.append(f"instances: folder has {names(x)}, command gives {names(y)}"
+                       + (" with other moves or limits" if same else ""))
         else:
             out.append(f"{k}: folder has {x!r}, command gives {y!r}")
     return out
@@ -203,10 +211,11 @@ def _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress,
                     stale.unlink(missing_ok=True)
         kind = f"race over {cfg.seeds} seeds (min {cfg.race['min_seeds']})" if cfg.race else f"{cfg.seeds} seeds"
         log(f"sweep: {', '.join(cfg.algorithms)}; {len(cfg.settings)} settings, {kind}, {cfg.n_runs()} runs at most")
-        ref = fixed_reference(out, cfg, front, be, log, progress)
-        reference = {k: ref[k] for k in ("front", "ideal", "nadir", "hv_ref")}
+        refs = [{k: ref[k] for k in ("front", "ideal", "nadir", "hv_ref")}
+                for ref in fixed_references(out, cfg, front, be, log, progress)]
+        reference = refs if cfg.instances else refs[0]
         alive = np.ones(len(cfg.settings), bool)
-        scores = np.full((len(cfg.settings), cfg.seeds), np.nan)  # HV of the plan's finished runs
+        scores = np.full((len(cfg.settings), cfg.n_blocks), np.nan)  # HV of the plan's finished runs
         seeds_done, r = 0, 0
         bar = tqdm(total=None if cfg.race else cfg.n_runs(), unit="run", disable=not progress, file=sys.stderr,
                    dynamic_ncols=True, smoothing=0.1)
@@ -231,13 +240,13 @@ def _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress,
                         if why:
                             say(f"{spec.name} {why}: computed again")
                     else:
-                        scores[data["setting"], data["seed"]] = data["HV"]
+                        scores[data["setting"], blocks_of(cfg, data)] = data["HV"]
                         bar.update(spec.n_real)
                 if len(todo) < len(plan):
                     say(f"round {r}: resuming, {len(plan) - len(todo)} of {len(plan)} chunks already done")
                 for spec, res in be.map(run_chunk, todo, reference):
                     write_chunk(chunks_dir / spec.name, cfg, res)
-                    scores[res["setting"], res["seed"]] = res["HV"]
+                    scores[res["setting"], blocks_of(cfg, res)] = res["HV"]
                     computed += 1
                     seconds = float(res["wall_s"][0]) * len(spec.seeds)
                     key = (spec.label, spec.pop, spec.iters)
