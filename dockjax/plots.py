@@ -178,6 +178,26 @@ def plot_median_iqr(lines: dict[str, tuple], path, *, xlabel: str, ylabel: str, 
     return _finish(fig, ax, path, xlabel=xlabel, ylabel=ylabel, title=title, legend_size=7)
 
 
+def plot_importance(bars: dict[str, tuple[list[str], np.ndarray, np.ndarray]], path, *, title: str) -> Path:
+    """Horizontal bars of importances with their intervals, one group of bars per label:
+    ``label → (parameter names (k,), importances (k,), intervals (k, 2))``; every label
+    names the same parameters."""
+    fig, ax = _axes()
+    labels = list(bars)
+    names = bars[labels[0]][0] if labels else []
+    height = 0.8 / max(len(labels), 1)
+    y = np.arange(len(names), dtype=float)
+    for g, label in enumerate(labels):
+        _, v, ci = bars[label]
+        v, ci = np.asarray(v, float), np.asarray(ci, float).reshape(-1, 2)
+        ax.barh(y + (g - (len(labels) - 1) / 2) * height, v, height=height, label=label,
+                xerr=[v - ci[:, 0], ci[:, 1] - v], capsize=3)
+    ax.set_yticks(y, names)
+    ax.set_xlim(0, 1)
+    return _finish(fig, ax, path, xlabel="importance (PED-ANOVA, sums to 1; bar = 95 % bootstrap interval)",
+                   ylabel="hyper-parameter", title=title, legend_size=8)
+
+
 def plot_front_groups(groups: dict[str, list[np.ndarray]], reference: np.ndarray, path, *, reference_label: str,
                       title: str) -> Path:
     """Every front of each group (``label → fronts (k, 2)``) in one colour, over a reference front."""

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
-__all__ = ["median_ci", "friedman", "holm", "a12", "Comparison", "compare_to_best", "conover"]
+__all__ = ["median_ci", "median_ci_clustered", "friedman", "holm", "a12", "Comparison", "compare_to_best", "conover"]
 
 
 def median_ci(x, confidence: float = 0.95, n_resamples: int = 2000, seed: int = 0) -> tuple[float, float, float]:
@@ -44,6 +44,35 @@ def median_ci(x, confidence: float = 0.95, n_resamples: int = 2000, seed: int = 
         return med, med, med
     res = sps.bootstrap((x,), np.median, confidence_level=confidence, n_resamples=n_resamples, method="percentile",
                         rng=np.random.default_rng(seed))
+    return med, float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def median_ci_clustered(M, confidence: float = 0.95, n_resamples: int = 2000,
+                        seed: int = 0) -> tuple[float, float, float]:
+    """``(median, low, high)`` of the values M (clusters, members), the interval by
+    resampling whole clusters (a study's instances, each with its seeds): a percentile
+    bootstrap (``scipy.stats.bootstrap`` over the cluster indices) of the median of every
+    finite value in the resampled clusters. One cluster gives :func:`median_ci` over its
+    members; no finite value gives NaNs."""
+    M = np.asarray(M, dtype=np.float64)
+    if M.ndim != 2:
+        raise ValueError(f"M must be (clusters, members), got shape {M.shape}")
+    finite = M[np.isfinite(M)]
+    if finite.size == 0:
+        return math.nan, math.nan, math.nan
+    keep = np.flatnonzero(np.isfinite(M).any(axis=1))
+    if keep.size == 1:
+        return median_ci(M[keep[0]], confidence, n_resamples, seed)
+    med = float(np.median(finite))
+    if np.ptp(finite) == 0:
+        return med, med, med
+
+    def statistic(idx):
+        values = M[idx.astype(np.int64)]
+        return np.median(values[np.isfinite(values)])
+
+    res = sps.bootstrap((keep.astype(np.float64),), statistic, vectorized=False, confidence_level=confidence,
+                        n_resamples=n_resamples, method="percentile", rng=np.random.default_rng(seed))
     return med, float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 

@@ -36,6 +36,7 @@ from ..io import atomic_savez, atomic_write_text, write_set
 from .config import COLUMNS, INDICATOR_COLUMNS, SweepConfig, blocks_of, round_seeds
 from .design import symbol
 from .files import finished_chunks, load_npz, reference_path
+from .importance import Importance, importances
 from .race import replay
 
 __all__ = ["Study", "Summary", "load_table", "load_config", "load_study", "summarise", "report", "write_table",
@@ -111,12 +112,14 @@ def per_instance(study: "Study", settings: Sequence[int], column: str = "HV") ->
 
 @dataclass
 class Summary:
-    """Per setting (rows in the order of ``cfg.settings``) and the comparison of the finalists."""
+    """Per setting (rows in the order of ``cfg.settings``), the comparison of the finalists
+    and the hyper-parameters' importances (:mod:`.importance`)."""
 
     rows: list[dict]
     finalists: np.ndarray
     comparison: stats.Comparison | None
     rounds: list[np.ndarray]
+    importance: list[Importance]
 
 
 @dataclass
@@ -168,8 +171,12 @@ def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
     rows = []
     for i, s in enumerate(cfg.settings):
         v = hv[i][np.isfinite(hv[i])]
-        med, lo, hi = stats.median_ci(v, seed=i)
-        gmed, glo, ghi = stats.median_ci(igdp[i][np.isfinite(igdp[i])], seed=i)
+        if cfg.instances:  # intervals by resampling instances, each with its seeds
+            med, lo, hi = stats.median_ci_clustered(hv[i].reshape(cfg.n_instances, cfg.seeds), seed=i)
+            gmed, glo, ghi = stats.median_ci_clustered(igdp[i].reshape(cfg.n_instances, cfg.seeds), seed=i)
+        else:
+            med, lo, hi = stats.median_ci(v, seed=i)
+            gmed, glo, ghi = stats.median_ci(igdp[i][np.isfinite(igdp[i])], seed=i)
         row = {"setting": i, "label": s.label, "algorithm": s.name, "pop": s.pop, "iterations": s.iters,
                "params": " ".join(f"{k}={v:g}" for k, v in s.params), "runs": int(v.size), "HV_median": med,
                "HV_ci_low": lo, "HV_ci_high": hi, "IGD+_median": gmed, "IGD+_ci_low": glo, "IGD+_ci_high": ghi}
@@ -187,7 +194,7 @@ def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
                          else "tied" if row["tied_with_best"] else
                          f"eliminated in round {eliminated[i]}" if eliminated[i] >= 0 else "worse")
         rows.append(row)
-    return Summary(rows, finalists, comparison, rounds)
+    return Summary(rows, finalists, comparison, rounds, importances(cfg, {"HV": hv, "IGD+": igdp}))
 
 
 def _order(rows: list[dict]) -> list[dict]:
@@ -339,6 +346,15 @@ def _figures(study: Study, out: Path) -> list[Path]:
     written.append(plots.plot_front_groups(groups_f, ref["front"], out / "fronts_best_worst.png",
                                            reference_label="reference front (fixed at sweep start)",
                                            title="fronts of every seed, best and worst setting by median HV" + view))
+    for algorithm in dict.fromkeys(i.algorithm for i in summary.importance):
+        bars = {}
+        for indicator in ("HV", "IGD+"):
+            mine = [i for i in summary.importance if i.algorithm == algorithm and i.indicator == indicator]
+            if mine:
+                names = [_symbol(algorithm, i.parameter) for i in mine]
+                bars[indicator] = (names, np.array([i.value for i in mine]), np.array([[i.low, i.high] for i in mine]))
+        written.append(plots.plot_importance(bars, out / f"importance_{algorithm}.png",
+                                             title=f"{algorithm}: hyper-parameter importance"))
     if cfg.instances:  # each leading setting's HV on every instance
         k = np.arange(cfg.n_instances, dtype=float)
         data = {}
@@ -359,6 +375,33 @@ def _leading(study: Study, rows: list[dict]) -> list[int]:
     ranked = [r["setting"] for r in rows if r["runs"]]
     default = next((i for i, s in enumerate(cfg.settings) if s.is_default() and summary.rows[i]["runs"]), None)
     return list(dict.fromkeys(ranked[:TOP_VIEWS] + ([default] if default is not None else [])))
+
+
+def _symbol(algorithm: str, name: str) -> str:
+    """A varied parameter's label: the paper's symbol of a ``Params`` field, else its name."""
+    return name if name in ("pop", "iterations", "refine_steps") else symbol(algorithm, name)
+
+
+def _importance_section(study: Study) -> list[str]:
+    """report.md's importance table: per algorithm, each varied hyper-parameter's importance
+    for HV and IGD+ with its interval."""
+    imp = study.summary.importance
+    lines = ["## Hyper-parameter importance", "",
+             "PED-ANOVA (Optuna's evaluator; the top 10 % of the settings, at least 3, against all of them), from "
+             "each setting's median over the blocks all of an algorithm's settings share, with 95 % bootstrap "
+             f"intervals resampling those blocks ({imp[0].blocks} for {imp[0].algorithm}). The importances of one "
+             "algorithm and indicator sum to 1; one whose interval reaches 0 is not established by this study.", ""]
+    body = []
+    for algorithm in dict.fromkeys(i.algorithm for i in imp):
+        mine = [i for i in imp if i.algorithm == algorithm]
+        for name in dict.fromkeys(i.parameter for i in mine):
+            cells = []
+            for indicator in ("HV", "IGD+"):
+                hit = [i for i in mine if i.parameter == name and i.indicator == indicator]
+                cells.append(f"{hit[0].value:.2f} [{hit[0].low:.2f}, {hit[0].high:.2f}]" if hit else "–")
+            body.append([algorithm, _symbol(algorithm, name), *cells])
+    return lines + markdown_table(["algorithm", "hyper-parameter", "HV importance [95 % CI]",
+                                   "IGD+ importance [95 % CI]"], body) + [""]
 
 
 def _instance_section(study: Study, rows: list[dict]) -> list[str]:
@@ -427,8 +470,8 @@ def _report_files(study: Study, folder: Path, extensions, log) -> list[Path]:
     if cfg.instances:
         note = (f"Indicators on objectives normalised by each instance's own reference front, fixed before the first "
                 f"run (references/, {source}; HV reference point {float(ref['hv_ref'])}); a block of the Friedman "
-                "and Wilcoxon tests is one (instance, seed) pair. Intervals: percentile bootstrap of the median over "
-                "the blocks, 95 %.")
+                "and Wilcoxon tests is one (instance, seed) pair. Intervals: percentile bootstrap of the median, "
+                "resampling instances (each with its seeds), 95 %.")
     else:
         note = (f"Indicators on objectives normalised by the fixed reference front of reference.npz ({source}, "
                 f"{len(ref['front'])} points; HV reference point {float(ref['hv_ref'])}). Intervals: percentile "
@@ -450,6 +493,8 @@ def _report_files(study: Study, folder: Path, extensions, log) -> list[Path]:
           "## Verdict", "", *verdict, "", "## Settings", "", *_md_table(rows), "", note, ""]
     if cfg.instances:
         md += _instance_section(study, rows)
+    if summary.importance:
+        md += _importance_section(study)
     if summary.rounds:
         md += ["## Race", "", "| round | seeds so far | settings left |", "|---|---:|---:|"]
         done = 0
