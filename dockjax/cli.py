@@ -129,7 +129,11 @@ class SweepArgs:
     interval_bounds, n_control, limits) or random:N (N moves drawn around the paper's, seeded by --instance-seed);
     every setting runs every seed on every instance, each scored against its own reference front. See docs/cli.md."""
     instance_seed: int = 0
-    """Seed of the moves drawn by --instances random:N."""
+    """Seed of the moves drawn by --instances random:N (and --test-instances random:M)."""
+    test_instances: str | None = None
+    """Held-out moves (a file or random:M, as --instances; random moves follow the training ones in the same seeded
+    draw, so none is a training move): afterwards the best setting and every one tied with it run the same seeds on
+    them, in --out/test/, and report.md says whether the ranking held."""
     refine_steps: int = 0
     """Memetic finish: polish every run's final population with this many gradient-refinement steps (dockjax.refine;
     the algorithm column then reads e.g. imocs+refine). 0: off."""
@@ -224,6 +228,9 @@ def sweep(args: SweepArgs) -> int:
             specs = _param_specs(args)
             instances = () if args.instances is None else parse_instances(
                 args.instances, seed=args.instance_seed, preset=args.preset, n_control=args.n_control)
+            skip = len(instances) if (args.instances or "").startswith("random:") else 0
+            test_instances = () if args.test_instances is None else parse_instances(
+                args.test_instances, seed=args.instance_seed, preset=args.preset, n_control=args.n_control, skip=skip)
             cfg, front = make_config(algorithms=args.algorithm, params=specs, pop=args.pop, iters=args.iters,
                                      budget=args.budget, design=args.design, samples=args.samples,
                                      design_seed=args.design_seed, seeds=args.seeds, preset=args.preset,
@@ -231,7 +238,7 @@ def sweep(args: SweepArgs) -> int:
                                      reference_front=args.reference_front, race=args.race,
                                      race_min_seeds=args.race_min_seeds, race_alpha=args.race_alpha,
                                      devices=_study_devices(args, n_devices), n_control=args.n_control,
-                                     instances=instances)
+                                     instances=instances, test_instances=test_instances)
         except ValueError as exc:
             raise ConfigError("; ".join([str(exc), *errors])) from None
         if errors:
@@ -260,11 +267,15 @@ def _run_study(cfg, claim, *, top: int, extensions=(), **options) -> int:
     claim_folder`, :func:`dockjax.sweep.run_sweep`) and report it, then release the folder;
     the exit code (0, 1 when the work cannot complete, 130 interrupted)."""
     from .sweep import ConfigError, report, run_sweep
+    from .sweep.testset import run_test_set, test_section
 
     out = claim.out
     finished = lambda: any((out / "chunks").glob("round-*.npz"))  # noqa: E731
     try:
         run_sweep(cfg, out, **options)
+        if cfg.test_instances:
+            run_test_set(cfg, out, top=top, **options)
+            extensions = (*extensions, test_section)
         report(out, top=top, extensions=extensions)
         return 0
     except ConfigError as exc:  # e.g. an unreachable scheduler; nothing was computed

@@ -199,17 +199,19 @@ def random_instances(n: int, *, seed: int = 0, preset: str = "paper", n_control:
     return tuple(out)
 
 
-def parse_instances(spec: str, *, seed: int = 0, preset: str = "paper",
-                    n_control: int = config.N_FREE) -> tuple[Instance, ...]:
-    """The command line's instances: ``random:N`` (:func:`random_instances` with ``seed``)
-    or the path of a TOML file (:func:`load_instances`)."""
+def parse_instances(spec: str, *, seed: int = 0, preset: str = "paper", n_control: int = config.N_FREE,
+                    skip: int = 0) -> tuple[Instance, ...]:
+    """The command line's instances: ``random:N`` (:func:`random_instances` with ``seed``;
+    the N moves after the first ``skip`` of that draw, e.g. a test set after the training
+    moves) or the path of a TOML file (:func:`load_instances`)."""
     if not isinstance(spec, str) or not spec:
         raise ValueError(f"instances must be a file or random:N, got {spec!r}")
     if spec.startswith("random:"):
         count = spec.split(":", 1)[1]
         if not count.isdigit():
             raise ValueError(f"instances random:N needs a whole number N, got {spec!r}")
-        return random_instances(int(count), seed=seed, preset=preset, n_control=n_control)
+        n = checks.integer("instances", int(count), 1, MAX_INSTANCES)
+        return random_instances(skip + n, seed=seed, preset=preset, n_control=n_control)[skip:]
     return load_instances(spec)
 
 

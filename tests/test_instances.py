@@ -16,7 +16,7 @@ import re
 import moocore
 import numpy as np
 import pytest
-from scipy.stats import friedmanchisquare
+from scipy.stats import friedmanchisquare, kendalltau
 
 from dockjax import config, sweep
 from dockjax.instances import (
@@ -234,3 +234,79 @@ def test_a_study_without_instances_keeps_its_identity():
                                       "race", "reference", "seeds", "settings"]
     assert cfg.identity()["normalisation"] == "ideal and nadir of reference.npz's front"
     assert {spec.instance for spec in sweep.plan_round(cfg, 0, [True], range(2))} == {-1}
+
+
+HELD_OUT = """
+[[instance]]
+name = "held out a"
+start = [772, -33, -1310, 0.15, -0.15, 189]
+goal = [748, -8, -1510, 0, 0, 181]
+
+[[instance]]
+name = "held out b"
+start = [778, -37, -1320, 0.2, -0.1, 190]
+goal = [741, -3, -1520, 0.05, 0, 179]
+"""
+
+
+@pytest.fixture(scope="module")
+def tested(run_once):
+    def make(folder):
+        train, test = folder / "moves.toml", folder / "held_out.toml"
+        train.write_text(TWO_MOVES)
+        test.write_text(HELD_OUT)
+        argv = [S.TINY, "--rho", "0.3", "0.5", "0.7", "--alpha-max", "0.1", "--instances", str(train),
+                "--test-instances", str(test)]
+        out = folder / "study"
+        code, text = S.run(out, *argv)
+        return code, text, out, argv
+
+    return run_once("test-set-study", make)
+
+
+def _median(rows, setting_label, column):
+    return float(np.median([float(r[column]) for r in rows if r["params"] == setting_label]))
+
+
+def test_the_best_and_the_tied_settings_run_on_the_held_out_moves(tested):
+    code, text, out, _ = tested
+    assert code == 0, text
+    with open(out / "summary.csv", newline="") as f:
+        elites = {r["params"] for r in csv.DictReader(f) if r["status"] in ("best", "tied")}
+    test_rows = _runs(out / "test")
+    assert {r["params"] for r in test_rows} == elites and elites
+    assert {r["instance"] for r in test_rows} == {"held out a", "held out b"}
+    assert {r["seed"] for r in test_rows} == {"0", "1"} and len(test_rows) == len(elites) * 2 * 2
+    assert (out / "test" / "references" / "instance-00001.npz").exists()
+
+
+def test_the_report_compares_training_and_test_medians(tested):
+    _, _, out, _ = tested
+    train_rows, test_rows = _runs(out), _runs(out / "test")
+    md = (out / "report.md").read_text()
+    section = md[md.index("## Test set"):]
+    labels = sorted({r["params"] for r in test_rows})
+    tr = np.array([_median(train_rows, p, "HV") for p in labels])
+    te = np.array([_median(test_rows, p, "HV") for p in labels])
+    for p, a, b in zip(labels, tr, te):  # the table's row of each setting: train then test median HV
+        rho = dict(kv.split("=") for kv in p.split())["rho"]  # runs.csv: "alpha_max=0.1 rho=0.3"
+        row = next(line for line in section.splitlines() if line.startswith("| imocs") and f"ρ={rho} |" in line)
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert float(cells[1]) == pytest.approx(a, abs=5e-5) and float(cells[2]) == pytest.approx(b, abs=5e-5)
+    if len(labels) >= 3:
+        tau = kendalltau(tr, te).statistic
+        stated = float(re.search(r"Kendall's τ between the training and test orders by median HV: (-?[0-9.]+)",
+                                 section).group(1))
+        assert stated == pytest.approx(tau, abs=0.006)
+    assert ("the ranking held" in section) != ("ranking did not hold" in section)
+    assert (out / "hv_train_test.png").stat().st_size > 0
+
+
+def test_a_test_set_resumes_and_must_be_held_out(tested, tmp_path, capsys):
+    _, _, out, argv = tested
+    again, said = S.run(out, *argv)
+    assert again == 0 and said.count("chunks already done") == 2, said
+    train = next(a for a in argv[1:] if a.endswith("moves.toml"))
+    code, _ = S.run(tmp_path / "x", S.TINY, "--instances", train, "--test-instances", train)
+    assert code == 2 and "are training moves too" in capsys.readouterr().err
+    assert parse_instances("random:2", seed=5, skip=3) == random_instances(5, seed=5)[3:]

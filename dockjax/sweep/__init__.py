@@ -25,9 +25,13 @@ Files of a study folder::
       summary.csv / .md  per setting: median and bootstrap interval of HV and IGD+, tests
                          against the best, effect size, verdict
       report.md          the verdict, the table, the race's rounds, the figures
-      fronts.npz, anytime_hv.png, eaf.png, heatmap_hv_*.png, hv_vs_pop.png, fronts_best_worst.png
+      fronts.npz, anytime_hv.png, eaf.png, heatmap_hv_*.png, hv_vs_pop.png, fronts_best_worst.png,
+      importance_*.png (:mod:`.importance`)
       (compare adds paper.csv, table3.csv, table4.csv, chosen.json, fronts.png,
       left_arm_xyz.png, joints.png, convergence.png)
+      over instances (:mod:`dockjax.instances`): references/instance-<k>.npz in place of
+      reference.npz, hv_per_instance.png; with a test set (:mod:`.testset`): test/, a study
+      of the best settings on the held-out instances, and hv_train_test.png
 
 Execution. A round's runs (setting, seed) are grouped by compiled program (algorithm,
 population, iterations, static hyper-parameters) and cut into chunks of at most ``chunk``

@@ -75,6 +75,10 @@ class SweepConfig:
     """The moves of a study over instances (:mod:`dockjax.instances`; empty: the preset's
     own move), written into the identity only when given. Every setting runs every seed on
     every instance; a block of the statistics is one (instance, seed) pair."""
+    test_instances: tuple[Instance, ...] = ()
+    """Held-out moves (:mod:`dockjax.sweep.testset`): the best setting and every one tied
+    with it run again on them, in the folder's ``test/`` study; written into the identity
+    only when given."""
 
     def identity(self) -> dict:
         return {"format": FORMAT, "preset": self.preset, "settings": [s.identity() for s in self.settings],
@@ -83,17 +87,20 @@ class SweepConfig:
                 "normalisation": ("ideal and nadir of each instance's reference front (references/)"
                                   if self.instances else "ideal and nadir of reference.npz's front"),
                 **({"n_control": self.n_control} if self.n_control != config.N_FREE else {}),
-                **({"instances": [i.identity() for i in self.instances]} if self.instances else {})}
+                **({"instances": [i.identity() for i in self.instances]} if self.instances else {}),
+                **({"test_instances": [i.identity() for i in self.test_instances]} if self.test_instances else {})}
 
     @classmethod
     def from_identity(cls, d: dict) -> "SweepConfig":
         """The configuration of a stored identity (``config.json``'s ``identity``)."""
-        instances = tuple(Instance(i["name"], {k: v for k, v in i.items() if k != "name"})
-                          for i in d.get("instances", ()))
+        def moves(key):
+            return tuple(Instance(i["name"], {k: v for k, v in i.items() if k != "name"}) for i in d.get(key, ()))
+
+        instances, test_instances = moves("instances"), moves("test_instances")
         return cls(settings=tuple(Setting.from_identity(s) for s in d["settings"]), preset=d["preset"],
                    seeds=int(d["seeds"]), chunk=int(d["chunk"]), reference=d["reference"], race=d["race"],
                    devices=d["devices"], driver=d["driver"], n_control=int(d.get("n_control", config.N_FREE)),
-                   instances=instances)
+                   instances=instances, test_instances=test_instances)
 
     @property
     def algorithms(self) -> list[str]:
@@ -342,15 +349,17 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
                 reference_front=None, race: bool = False, race_min_seeds: int = 5, race_alpha: float = 0.05,
                 devices: int | None = None, best_known: dict | None = None,
                 driver: str = "scan", n_control: int = config.N_FREE,
-                instances: Sequence[Instance] = ()) -> tuple[SweepConfig, np.ndarray | None]:
+                instances: Sequence[Instance] = (),
+                test_instances: Sequence[Instance] = ()) -> tuple[SweepConfig, np.ndarray | None]:
     """Validate a sweep (nothing is written, nothing is compiled) and build its
     configuration. ``reference``: ``"best-known"`` (default; ``best_known`` overrides
     settings of :data:`dockjax.config.BEST_KNOWN`), ``"pilot"`` or ``"file"``
     (``reference_front`` a path). ``instances``: the moves of a study over instances
     (:mod:`dockjax.instances`; each gets its own best-known or pilot reference; not with a
-    reference file or a race). Returns the configuration and the loaded reference front
-    (None unless read from a file). Raises ConfigError with every problem on one line,
-    naming the options."""
+    reference file or a race). ``test_instances``: held-out moves the best settings run on
+    afterwards (:mod:`dockjax.sweep.testset`; none of them a training move). Returns the
+    configuration and the loaded reference front (None unless read from a file). Raises
+    ConfigError with every problem on one line, naming the options."""
     errors: list[str] = []
     for name, values in (("--pop", list(pop)), ("--iters", list(iters)), ("--budget", [budget or 0]),
                          ("--seeds", [seeds]), ("--chunk", [chunk]), ("--samples", [samples]),
@@ -426,6 +435,23 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
             check_instances(instances, preset, n_control)
         except ValueError as exc:
             errors.append(f"--instances: {exc}")
+    test_instances = tuple(test_instances)
+    if test_instances:
+        if reference == "file" or reference_front is not None:
+            errors.append("--reference-front is one move's front: the --test-instances take each instance's own "
+                          "reference (--reference best-known or pilot)")
+        if len(test_instances) > 1_000:
+            errors.append(f"--test-instances gives {len(test_instances)} moves, more than 1000")
+        seen = [i.fields for i in instances] if instances else [{"start": list(config.PRESETS[preset].get(
+            "start", config.START)), "goal": list(config.PRESETS[preset].get("goal", config.GOAL))}]
+        both = [i.name for i in test_instances if any(_same_move(i.fields, f) for f in seen)]
+        if both:
+            errors.append(f"--test-instances {both[:3]} are training moves too: a test set must be held out")
+        if not errors:
+            try:
+                check_instances(test_instances, preset, n_control)
+            except ValueError as exc:
+                errors.append(f"--test-instances: {exc}")
     settings: list[Setting] = []
     if not errors:
         try:
@@ -437,5 +463,15 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
         raise ConfigError("; ".join(errors))
     cfg = SweepConfig(settings=tuple(settings), preset=preset, seeds=seeds, chunk=chunk, reference=ref,
                       race={"min_seeds": race_min_seeds, "alpha": race_alpha} if race else None,
-                      devices=devices, driver=driver, n_control=int(n_control), instances=instances)
+                      devices=devices, driver=driver, n_control=int(n_control), instances=instances,
+                      test_instances=test_instances)
     return cfg, front
+
+
+def _same_move(a: dict, b: dict) -> bool:
+    """Whether two instances' fields are the same move (every field equal as numbers)."""
+    def norm(d: dict) -> str:
+        return json.dumps({k: np.asarray(v, np.float64).tolist() if isinstance(v, (list, tuple, int, float)) else v
+                           for k, v in d.items()}, sort_keys=True)
+
+    return norm(a) == norm(b)

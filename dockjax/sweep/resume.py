@@ -48,13 +48,13 @@ def _diff(a: dict, b: dict) -> list[str]:
                 return f"{n} CPU device(s)" if n is not None else "Dask workers (--backend dask)"
             out.append(f"devices: the folder's runs were made on {what(x)}, this command runs them on {what(y)} "
                        "(the numbers depend on it)")
-        elif k == "instances":
+        elif k in ("instances", "test_instances"):
             def names(v):
                 v = v or []
                 shown = ", ".join(d["name"] for d in v[:3]) + (", ..." if len(v) > 3 else "")
                 return f"{len(v)} ({shown})" if v else "none (the preset's move)"
             same = [d["name"] for d in x or []] == [d["name"] for d in y or []]
-            out.append(f"instances: folder has {names(x)}, command gives {names(y)}"
+            out.append(f"{k}: folder has {names(x)}, command gives {names(y)}"
                        + (" with other moves or limits" if same else ""))
         else:
             out.append(f"{k}: folder has {x!r}, command gives {y!r}")
