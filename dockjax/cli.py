@@ -134,6 +134,10 @@ class SweepArgs:
     """Held-out moves (a file or random:M, as --instances; random moves follow the training ones in the same seeded
     draw, so none is a training move): afterwards the best setting and every one tied with it run the same seeds on
     them, in --out/test/, and report.md says whether the ranking held."""
+    ablation: bool = False
+    """Afterwards, the ablation path from the algorithm's defaults to the best setting: one hyper-parameter a step,
+    each step's candidates run as a study in --out/ablation/step-K/; report.md gives each step's HV change and its
+    Wilcoxon p-value."""
     refine_steps: int = 0
     """Memetic finish: polish every run's final population with this many gradient-refinement steps (dockjax.refine;
     the algorithm column then reads e.g. imocs+refine). 0: off."""
@@ -251,7 +255,8 @@ def sweep(args: SweepArgs) -> int:
     enable_compilation_cache()
     t0 = time.perf_counter()
     code = _run_study(cfg, claim, front=front, backend=args.backend, scheduler=args.scheduler,
-                      workers=args.workers, dask_processes=args.dask_processes, progress=args.progress, top=args.top)
+                      workers=args.workers, dask_processes=args.dask_processes, progress=args.progress, top=args.top,
+                      ablation=args.ablation)
     if code == 0:
         print(f"total {time.perf_counter() - t0:.1f} s")
     return code
@@ -262,11 +267,12 @@ def _command(name: str) -> str:
     return " ".join(["dockjax", name, *(a for a in sys.argv[1:] if a != name)])
 
 
-def _run_study(cfg, claim, *, top: int, extensions=(), **options) -> int:
+def _run_study(cfg, claim, *, top: int, extensions=(), ablation: bool = False, **options) -> int:
     """Run the missing chunks of a study folder this process holds (:func:`dockjax.sweep.
     claim_folder`, :func:`dockjax.sweep.run_sweep`) and report it, then release the folder;
     the exit code (0, 1 when the work cannot complete, 130 interrupted)."""
     from .sweep import ConfigError, report, run_sweep
+    from .sweep.ablation import ablation_section, run_ablation
     from .sweep.testset import run_test_set, test_section
 
     out = claim.out
@@ -276,6 +282,8 @@ def _run_study(cfg, claim, *, top: int, extensions=(), **options) -> int:
         if cfg.test_instances:
             run_test_set(cfg, out, top=top, **options)
             extensions = (*extensions, test_section)
+        if ablation:
+            extensions = (*extensions, ablation_section(run_ablation(cfg, out, top=top, **options)))
         report(out, top=top, extensions=extensions)
         return 0
     except ConfigError as exc:  # e.g. an unreachable scheduler; nothing was computed

@@ -31,7 +31,8 @@ Files of a study folder::
       left_arm_xyz.png, joints.png, convergence.png)
       over instances (:mod:`dockjax.instances`): references/instance-<k>.npz in place of
       reference.npz, hv_per_instance.png; with a test set (:mod:`.testset`): test/, a study
-      of the best settings on the held-out instances, and hv_train_test.png
+      of the best settings on the held-out instances, and hv_train_test.png; with the
+      ablation path (:mod:`.ablation`): ablation/step-<k>/, one study a step, and ablation.png
 
 Execution. A round's runs (setting, seed) are grouped by compiled program (algorithm,
 population, iterations, static hyper-parameters) and cut into chunks of at most ``chunk``

@@ -40,6 +40,9 @@ TOP_QUANTILE = 0.1
 TOP_SETTINGS = 3
 """Fewest settings in PED-ANOVA's top: a 3 × 3 grid's top 10 % is one setting, whose
 parameters then all look equally important (0.5 each, whatever the scores)."""
+MIN_SETTINGS = 2 * TOP_SETTINGS
+"""Fewest settings of one algorithm whose importances are computed (the top must be a
+proper part of them)."""
 RESAMPLES = 100
 """Bootstrap resamples of the blocks behind each importance interval."""
 INDICATORS = (("HV", "maximize"), ("IGD+", "minimize"))
@@ -117,15 +120,15 @@ def importances(cfg: SweepConfig, matrices: dict[str, np.ndarray], *, resamples:
     """The importances of every algorithm's varied hyper-parameters (module docstring).
     ``matrices``: indicator name → (settings, blocks) scores, NaN where a run is missing (a
     race's dropped settings); only the blocks that all of an algorithm's settings have
-    count. Algorithms with fewer than two varied parameters, three settings or two common
-    blocks, and indicators whose importances are not informative (every setting ties), are
+    count. Algorithms with fewer than two varied parameters, :data:`MIN_SETTINGS` settings
+    or two common blocks, and indicators whose importances are not informative (every setting ties), are
     left out; an interval is taken over the informative resamples."""
     out: list[Importance] = []
     rng = np.random.default_rng(seed)
     for algorithm in cfg.algorithms:
         members = [i for i, s in enumerate(cfg.settings) if s.algorithm == algorithm]
         names = varied_parameters(cfg, members)
-        if len(names) < 2 or len(members) < 3:
+        if len(names) < 2 or len(members) < MIN_SETTINGS:
             continue
         params = {k: np.array([_value(cfg.settings[i], k) for i in members], np.float64) for k in names}
         integer = {k: k in ("pop", "iterations", "refine_steps") or isinstance(_value(cfg.settings[members[0]], k), int)
