@@ -218,7 +218,7 @@ def test_the_same_command_resumes_and_other_instances_are_refused(study, capsys)
 @pytest.mark.parametrize("extra, message", [
     (["--instances", "random:0"], "instances must be an integer from 1"),
     (["--instances", "nowhere.toml"], "instances file nowhere.toml cannot be read"),
-    (["--instances", "random:2", "--race"], "--race over --instances is not available"),
+    (["--instances", "random:2", "--reference-front", "front.csv"], "takes each instance's own reference"),
 ])
 def test_bad_instances_exit_2_with_one_line_and_no_folder(tmp_path, capsys, extra, message):
     out = tmp_path / "new"
@@ -310,3 +310,18 @@ def test_a_test_set_resumes_and_must_be_held_out(tested, tmp_path, capsys):
     code, _ = S.run(tmp_path / "x", S.TINY, "--instances", train, "--test-instances", train)
     assert code == 2 and "are training moves too" in capsys.readouterr().err
     assert parse_instances("random:2", seed=5, skip=3) == random_instances(5, seed=5)[3:]
+
+
+def test_a_race_over_instances_brings_new_instances_each_round(tmp_path, two_moves):
+    """irace's order: every instance with seed 0, then every instance with seed 1, ...:
+    each setting's runs are a prefix of that order, as long as the setting survived."""
+    out = tmp_path / "race"
+    code, text = S.run(out, S.RACE, "--instances", str(two_moves), "--seeds", "3")
+    assert code == 0, text
+    order = [(k, s) for s in range(3) for k in ("paper", "slow lift")]
+    rows = _runs(out)
+    for setting in {r["setting"] for r in rows}:
+        done = {(r["instance"], int(r["seed"])) for r in rows if r["setting"] == setting}
+        assert done == set(order[:len(done)]) and len(done) >= 2, (setting, sorted(done))
+    md = (out / "report.md").read_text()
+    assert "| round | blocks (instance, seed) so far | settings left |" in md

@@ -33,7 +33,7 @@ from ..runtime import check_memory
 from .design import ParamSpec, Setting, build_settings, static_key
 
 __all__ = ["FORMAT", "PILOT_SEED0", "COLUMNS", "INDICATOR_COLUMNS", "ConfigError", "SweepConfig", "ChunkSpec",
-           "round_seeds", "plan_round", "pilot_spec", "load_front_file", "make_config", "blocks_of"]
+           "round_seeds", "plan_round", "pilot_spec", "load_front_file", "make_config", "blocks_of", "block_run"]
 
 FORMAT = "dockjax-sweep/3"
 PILOT_SEED0 = 1_000_000
@@ -122,10 +122,20 @@ class SweepConfig:
 
 
 def blocks_of(cfg: SweepConfig, columns: dict) -> np.ndarray:
-    """The block of each run of ``columns`` (a chunk's or the table's): ``instance × seeds +
-    seed`` (the seed alone without instances), the column of the statistics' matrices."""
+    """The block of each run of ``columns`` (a chunk's or the table's): ``seed ×
+    instances + instance`` (the seed alone without instances), the column of the
+    statistics' matrices. Blocks are numbered in the order a race runs them
+    (:func:`block_run`): every instance with seed 0, then every instance with seed 1, ..."""
     seed = np.asarray(columns["seed"], np.int64)
-    return np.asarray(columns.get("instance", np.zeros_like(seed)), np.int64) * cfg.seeds + seed
+    return seed * cfg.n_instances + np.asarray(columns.get("instance", np.zeros_like(seed)), np.int64)
+
+
+def block_run(cfg: SweepConfig, block: int) -> tuple[int, int]:
+    """``(instance, seed)`` of a block (:func:`blocks_of`); instance -1 without instances."""
+    if not cfg.instances:
+        return -1, block
+    seed, instance = divmod(block, cfg.n_instances)
+    return instance, seed
 
 
 @dataclass(frozen=True)
@@ -179,14 +189,18 @@ class ChunkSpec:
 
 
 def round_seeds(cfg: SweepConfig, round_index: int, seeds_done: int, n_alive: int) -> range:
-    """The seeds of a round: every seed without racing; in a race, ``min_seeds`` first, then
-    as many as fill one chunk with the ``n_alive`` survivors (at least one), up to the budget."""
+    """The blocks of a round (:func:`blocks_of`; the seeds, without instances): every block
+    without racing; in a race, ``min_seeds`` first, then as many as fill one chunk with the
+    ``n_alive`` survivors (at least one), up to the budget (``seeds`` × instances). Over
+    instances a race so brings new instances each round, as irace does, and gives them
+    further seeds once every instance has been run."""
+    total = cfg.n_blocks
     if cfg.race is None:
-        return range(cfg.seeds) if round_index == 0 else range(0)
+        return range(total) if round_index == 0 else range(0)
     if round_index == 0:
-        return range(min(cfg.race["min_seeds"], cfg.seeds))
+        return range(min(cfg.race["min_seeds"], total))
     k = max(1, cfg.chunk // max(n_alive, 1))
-    return range(seeds_done, min(cfg.seeds, seeds_done + k))
+    return range(seeds_done, min(total, seeds_done + k))
 
 
 def _chunk_size(n: int, limit: int) -> int:
@@ -194,16 +208,17 @@ def _chunk_size(n: int, limit: int) -> int:
 
 
 def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds: range) -> list[ChunkSpec]:
-    """The chunks of one round: the runs (alive setting, seed), grouped by compiled program
-    (:func:`~dockjax.sweep.design.static_key`), cut into chunks; balanced sizes without
+    """The chunks of one round: the runs (alive setting, block of ``seeds``: a seed, or an
+    (instance, seed) pair), grouped by compiled program
+    (:func:`~dockjax.sweep.design.static_key`) and instance, cut into chunks; balanced sizes without
     racing, chunks of exactly ``chunk`` runs in a race (one compiled shape for every
     round). Short chunks are padded with repeats of their own runs, which are dropped."""
     groups: dict[tuple, list[tuple[int, int]]] = {}
-    for k in _instance_indices(cfg):
-        for i, s in enumerate(cfg.settings):
-            if alive[i]:
-                for seed in seeds:
-                    groups.setdefault((static_key(s), k), []).append((i, seed))
+    for i, s in enumerate(cfg.settings):
+        if alive[i]:
+            for block in seeds:
+                k, seed = block_run(cfg, block)
+                groups.setdefault((static_key(s), k), []).append((i, seed))
     chunks: list[ChunkSpec] = []
     rows = refine_rows(cfg)
     for (key, instance), runs in groups.items():
@@ -220,11 +235,6 @@ def plan_round(cfg: SweepConfig, round_index: int, alive: Sequence[bool], seeds:
                                     driver=cfg.driver, n_control=cfg.n_control, instance=instance,
                                     instance_fields=_instance_json(cfg, instance)))
     return chunks
-
-
-def _instance_indices(cfg: SweepConfig) -> range:
-    """Indices of the study's instances, or ``range(-1, 0)`` (the preset's own move)."""
-    return range(len(cfg.instances)) if cfg.instances else range(-1, 0)
 
 
 def _instance_json(cfg: SweepConfig, instance: int) -> str:
@@ -428,8 +438,6 @@ def make_config(*, algorithms: Sequence[str] = ("imocs",), params: Iterable[Para
     if instances and (reference == "file" or reference_front is not None):
         errors.append("--reference-front is one move's front: a study over --instances takes each instance's own "
                       "reference (--reference best-known or pilot)")
-    if instances and race:
-        errors.append("--race over --instances is not available: run every setting on every instance (no --race)")
     if instances and not errors:
         try:
             check_instances(instances, preset, n_control)

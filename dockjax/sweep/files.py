@@ -94,6 +94,6 @@ def finished_chunks(cfg: SweepConfig, out: Path) -> list[tuple[ChunkSpec, dict[s
             break
         alive = decide(cfg, scores, alive, done)
         r += 1
-        if alive.sum() <= 1 or done >= cfg.seeds:
+        if alive.sum() <= 1 or done >= cfg.n_blocks:
             break
     return found

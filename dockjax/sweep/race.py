@@ -5,7 +5,9 @@ seeds they all share, as irace does (López-Ibáñez et al. 2016, "The irace pac
 Friedman's test across them; if it rejects at ``alpha``, Conover's post-hoc comparison of
 the rank sums against the best drops every setting significantly worse
 (:func:`dockjax.stats.conover`); with two survivors, the Wilcoxon signed-rank test decides.
-The race stops when the seed budget is spent or one setting is left. Everything here is a
+The race stops when the seed budget is spent or one setting is left. Over instances a block
+is an (instance, seed) pair and each round brings new instances (irace's iterated race),
+then further seeds of them. Everything here is a
 pure function of the scores, and the decision after a round (:func:`decide`) sees only the
 seeds run by then, so a resumed race, a re-run of a finished one and the report
 (:func:`replay`) take the same decisions, whatever else the folder holds.
@@ -52,8 +54,10 @@ def eliminate(scores: np.ndarray, alive: np.ndarray, alpha: float, min_seeds: in
 
 def decide(cfg, scores: np.ndarray, alive: np.ndarray, seeds_done: int) -> np.ndarray:
     """The survivors after a round of the race of ``cfg`` that ended with ``seeds_done``
-    seeds run: :func:`eliminate` on the scores (settings, seeds) of seeds ``0 ..
-    seeds_done − 1`` only (a later round's scores, where present, are not looked at)."""
+    blocks run (seeds; over instances, (instance, seed) pairs in the race's order,
+    :func:`dockjax.sweep.config.blocks_of`): :func:`eliminate` on the scores (settings,
+    blocks) of blocks ``0 .. seeds_done − 1`` only (a later round's scores, where present,
+    are not looked at)."""
     seen = np.where(np.arange(scores.shape[1])[None, :] < seeds_done, scores, np.nan)
     return eliminate(seen, alive, cfg.race["alpha"], cfg.race["min_seeds"])
 
@@ -71,6 +75,6 @@ def replay(cfg, scores: np.ndarray) -> list[tuple[range, np.ndarray]]:
         alive = decide(cfg, scores, alive, done)
         rounds.append((seeds, alive.copy()))
         r += 1
-        if alive.sum() <= 1 or done >= cfg.seeds:
+        if alive.sum() <= 1 or done >= cfg.n_blocks:
             break
     return rounds

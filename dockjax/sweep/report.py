@@ -172,8 +172,8 @@ def summarise(cfg: SweepConfig, cols, alpha: float = 0.05) -> Summary:
     for i, s in enumerate(cfg.settings):
         v = hv[i][np.isfinite(hv[i])]
         if cfg.instances:  # intervals by resampling instances, each with its seeds
-            med, lo, hi = stats.median_ci_clustered(hv[i].reshape(cfg.n_instances, cfg.seeds), seed=i)
-            gmed, glo, ghi = stats.median_ci_clustered(igdp[i].reshape(cfg.n_instances, cfg.seeds), seed=i)
+            med, lo, hi = stats.median_ci_clustered(hv[i].reshape(cfg.seeds, cfg.n_instances).T, seed=i)
+            gmed, glo, ghi = stats.median_ci_clustered(igdp[i].reshape(cfg.seeds, cfg.n_instances).T, seed=i)
         else:
             med, lo, hi = stats.median_ci(v, seed=i)
             gmed, glo, ghi = stats.median_ci(igdp[i][np.isfinite(igdp[i])], seed=i)
@@ -486,7 +486,7 @@ def _report_files(study: Study, folder: Path, extensions, log) -> list[Path]:
     md = ["# Sweep report", "",
           f"{len(cfg.settings)} settings of {', '.join(cfg.algorithms)} on {where}, "
           f"{len(cols['setting'])} runs"
-          + (f" (race over at most {cfg.seeds} seeds; the full grid would be {cfg.n_runs()} runs, "
+          + (f" (race over at most {_blocks_word(cfg, cfg.n_blocks)}; the full grid would be {cfg.n_runs()} runs, "
              f"{100 * len(cols['setting']) / cfg.n_runs():.0f} % of it)" if cfg.race else
              f", {cfg.seeds} seeds each" + (" on every instance" if cfg.instances else ""))
           + f". Reference front: {refs}.", "",
@@ -496,7 +496,8 @@ def _report_files(study: Study, folder: Path, extensions, log) -> list[Path]:
     if summary.importance:
         md += _importance_section(study)
     if summary.rounds:
-        md += ["## Race", "", "| round | seeds so far | settings left |", "|---|---:|---:|"]
+        so_far = "blocks (instance, seed) so far" if cfg.instances else "seeds so far"
+        md += ["## Race", "", f"| round | {so_far} | settings left |", "|---|---:|---:|"]
         done = 0
         alive_before = len(cfg.settings)
         for r, alive in enumerate(summary.rounds):

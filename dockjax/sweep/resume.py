@@ -209,7 +209,9 @@ def _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress,
                     shutil.rmtree(stale, ignore_errors=True)
                 else:
                     stale.unlink(missing_ok=True)
-        kind = f"race over {cfg.seeds} seeds (min {cfg.race['min_seeds']})" if cfg.race else f"{cfg.seeds} seeds"
+        unit = "blocks (instance, seed)" if cfg.instances else "seeds"
+        kind = (f"race over {cfg.n_blocks} {unit} (min {cfg.race['min_seeds']})" if cfg.race else
+                f"{cfg.seeds} seeds" + (f" on {cfg.n_instances} instances" if cfg.instances else ""))
         log(f"sweep: {', '.join(cfg.algorithms)}; {len(cfg.settings)} settings, {kind}, {cfg.n_runs()} runs at most")
         refs = [{k: ref[k] for k in ("front", "ideal", "nadir", "hv_ref")}
                 for ref in fixed_references(out, cfg, front, be, log, progress)]
@@ -266,7 +268,7 @@ def _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress,
                 say(f"round {r}: seeds {seeds.start}..{seeds.stop - 1}, {before} settings raced, "
                     f"{int(alive.sum())} left")
                 r += 1
-                if alive.sum() <= 1 or seeds_done >= cfg.seeds:
+                if alive.sum() <= 1 or seeds_done >= cfg.n_blocks:
                     break
         finally:
             bar.close()
