@@ -64,3 +64,17 @@ def test_noisy_scores_give_intervals_and_nothing_without_two_varied_parameters()
     pops = sweep.make_config(algorithms=("imocs",), params=[sweep.ParamSpec("rho", "imocs", values=(0.3, 0.5))],
                              pop=(8, 16), iters=(3,), seeds=2, chunk=2, reference="pilot")[0]
     assert varied_parameters(pops, range(4)) == ["rho", "pop"]
+
+
+def test_two_interacting_parameters_share_the_importance():
+    """A planted interaction: the score is high only where ρ and α_max are both at one end of
+    the grid, so neither alone decides and each carries a large share of the importance
+    (0.40 and 0.60: ρ's grid is linear, α_max's logarithmic)."""
+    cfg = _grid()
+    rho = np.array([s.value("rho") for s in cfg.settings])
+    alpha = np.array([s.value("alpha_max") for s in cfg.settings])
+    hv = np.where((rho >= 0.7) & (alpha >= 10.0), 1.0, 0.0)
+    hv = np.repeat(hv[:, None], cfg.seeds, 1) + np.linspace(-1e-9, 1e-9, cfg.seeds)
+    got = _by(importances(cfg, {"HV": hv, "IGD+": -hv}, resamples=20), "HV")
+    for name in ("rho", "alpha_max"):  # neither near 0 nor near 1, and established by every resample
+        assert 0.3 < got[name].value < 0.7 and got[name].low > 0.25, got

@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import re
+import signal
 
 import moocore
 import numpy as np
@@ -312,11 +313,24 @@ def test_a_test_set_resumes_and_must_be_held_out(tested, tmp_path, capsys):
     assert parse_instances("random:2", seed=5, skip=3) == random_instances(5, seed=5)[3:]
 
 
-def test_a_race_over_instances_brings_new_instances_each_round(tmp_path, two_moves):
+
+@pytest.fixture(scope="module")
+def instance_race(run_once):
+    def make(folder):
+        path = folder / "moves.toml"
+        path.write_text(TWO_MOVES)
+        extra = ("--instances", str(path), "--seeds", "3")
+        out = folder / "race"
+        code, text = S.run(out, S.RACE, *extra)
+        return code, text, out, extra
+
+    return run_once("instance-race", make)
+
+
+def test_a_race_over_instances_brings_new_instances_each_round(instance_race):
     """irace's order: every instance with seed 0, then every instance with seed 1, ...:
     each setting's runs are a prefix of that order, as long as the setting survived."""
-    out = tmp_path / "race"
-    code, text = S.run(out, S.RACE, "--instances", str(two_moves), "--seeds", "3")
+    code, text, out, _ = instance_race
     assert code == 0, text
     order = [(k, s) for s in range(3) for k in ("paper", "slow lift")]
     rows = _runs(out)
@@ -325,3 +339,13 @@ def test_a_race_over_instances_brings_new_instances_each_round(tmp_path, two_mov
         assert done == set(order[:len(done)]) and len(done) >= 2, (setting, sorted(done))
     md = (out / "report.md").read_text()
     assert "| round | blocks (instance, seed) so far | settings left |" in md
+
+
+def test_an_interrupted_instance_race_resumes_to_the_same_table(instance_race, tmp_path):
+    _, _, full, extra = instance_race
+    out = tmp_path / "killed"
+    # kill after round 0 (4 settings x 2 blocks in 4 chunks) and the first chunk of round 1
+    assert S.process(out, S.argv(S.RACE, *extra), "SIGKILL:5").returncode == -signal.SIGKILL
+    assert len(list((out / "chunks").glob("round-*.npz"))) == 5
+    assert S.run(out, S.RACE, *extra)[0] == 0
+    assert S.table(out) == S.table(full)

@@ -33,7 +33,7 @@ from .report import Study, load_study, markdown_table, report
 from .resume import prepare_folder, run_sweep
 from .testset import elites
 
-__all__ = ["ABLATION_FOLDER", "Step", "default_of", "run_ablation", "ablation_section"]
+__all__ = ["ABLATION_FOLDER", "Step", "default_of", "ablation_steps", "run_ablation", "ablation_section"]
 
 ABLATION_FOLDER = "ablation"
 """The subfolder of a study folder that holds the studies of its ablation path."""
@@ -78,33 +78,19 @@ def _hv_by_block(study: Study, setting: Setting) -> np.ndarray:
     return out
 
 
-def run_ablation(cfg: SweepConfig, out: Path, *, top: int = 10, log: Callable[[str], None] = print,
-                 **options) -> list[Step]:
-    """Run (or resume) the ablation path of the finished study in ``out`` (module
-    docstring): each step's study in ``out/ablation/step-<k>``, reported. Returns the
-    steps (none when the best setting is the default)."""
-    study = load_study(out)
-    chosen = elites(study.summary)
-    if not chosen:
-        raise RuntimeError("no setting has a complete set of scores: there is no best setting to ablate")
-    best = cfg.settings[study.summary.finalists.nonzero()[0][study.summary.comparison.best]]
+def ablation_steps(best: Setting, evaluate: Callable[[int, Setting, list[Setting]], tuple[np.ndarray, list]]
+                   ) -> list[Step]:
+    """The path from :func:`default_of` ``best`` to ``best`` (module docstring), whatever
+    scores the settings: ``evaluate(k, current, candidates)`` → the current setting's HV
+    per block (blocks,) and each candidate's (same blocks; NaN where missing), for step k."""
     current = default_of(best)
-    todo = [k for k, v in best.params if current.value(k) != v]
+    todo = [name for name, v in best.params if current.value(name) != v]
     steps: list[Step] = []
-    if todo:
-        log(f"ablation: {len(todo)} parameter(s) from the defaults to {best.label}")
     k = 0
     while todo:
         candidates = [_with(current, name, best.value(name)) for name in todo]
-        scfg = dataclasses.replace(cfg, settings=(current, *candidates), race=None, test_instances=())
-        folder = Path(out) / ABLATION_FOLDER / f"step-{k}"
-        prepare_folder(folder, scfg)
-        log(f"ablation step {k}: {len(candidates)} candidate(s) from {current.label}")
-        run_sweep(scfg, folder, log=log, **options)
-        report(folder, top=top, log=lambda _: None)
-        step_study = load_study(folder)
-        base = _hv_by_block(step_study, current)
-        runs = [_hv_by_block(step_study, c) for c in candidates]
+        base, runs = evaluate(k, current, candidates)
+        base, runs = np.asarray(base, np.float64), [np.asarray(r, np.float64) for r in runs]
         j = int(np.argmax([np.nanmedian(r) for r in runs]))
         pair = np.isfinite(base) & np.isfinite(runs[j])
         diff = runs[j][pair] - base[pair]
@@ -115,6 +101,32 @@ def run_ablation(cfg: SweepConfig, out: Path, *, top: int = 10, log: Callable[[s
                           base[pair], runs[j][pair]))
         current, todo, k = candidates[j], todo[:j] + todo[j + 1:], k + 1
     return steps
+
+
+def run_ablation(cfg: SweepConfig, out: Path, *, top: int = 10, log: Callable[[str], None] = print,
+                 **options) -> list[Step]:
+    """Run (or resume) the ablation path of the finished study in ``out`` (module
+    docstring): :func:`ablation_steps` with each step's settings run as a study in
+    ``out/ablation/step-<k>``, reported. Returns the steps (none when the best setting is
+    the default)."""
+    study = load_study(out)
+    if not elites(study.summary):
+        raise RuntimeError("no setting has a complete set of scores: there is no best setting to ablate")
+    best = cfg.settings[study.summary.finalists.nonzero()[0][study.summary.comparison.best]]
+
+    def evaluate(k: int, current: Setting, candidates: list[Setting]):
+        if k == 0:
+            log(f"ablation: from the defaults to {best.label}")
+        scfg = dataclasses.replace(cfg, settings=(current, *candidates), race=None, test_instances=())
+        folder = Path(out) / ABLATION_FOLDER / f"step-{k}"
+        prepare_folder(folder, scfg)
+        log(f"ablation step {k}: {len(candidates)} candidate(s) from {current.label}")
+        run_sweep(scfg, folder, log=log, **options)
+        report(folder, top=top, log=lambda _: None)
+        step_study = load_study(folder)
+        return _hv_by_block(step_study, current), [_hv_by_block(step_study, c) for c in candidates]
+
+    return ablation_steps(best, evaluate)
 
 
 def ablation_section(steps: list[Step]):
