@@ -203,7 +203,6 @@ def _param_specs(args: SweepArgs):
 def sweep(args: SweepArgs) -> int:
     """Validate (exit 2 before any compilation, without leaving a folder behind), run the
     missing chunks, report."""
-    from .instances import parse_instances
     from .sweep import ConfigError, claim_folder, make_config
 
     errors = [f"{name} must be >= 1, got {v}" for name, v in (("--workers", args.workers), ("--top", args.top))
@@ -230,11 +229,9 @@ def sweep(args: SweepArgs) -> int:
     try:
         try:
             specs = _param_specs(args)
-            instances = () if args.instances is None else parse_instances(
-                args.instances, seed=args.instance_seed, preset=args.preset, n_control=args.n_control)
+            instances = _moves("--instances", args.instances, args)
             skip = len(instances) if (args.instances or "").startswith("random:") else 0
-            test_instances = () if args.test_instances is None else parse_instances(
-                args.test_instances, seed=args.instance_seed, preset=args.preset, n_control=args.n_control, skip=skip)
+            test_instances = _moves("--test-instances", args.test_instances, args, skip)
             cfg, front = make_config(algorithms=args.algorithm, params=specs, pop=args.pop, iters=args.iters,
                                      budget=args.budget, design=args.design, samples=args.samples,
                                      design_seed=args.design_seed, seeds=args.seeds, preset=args.preset,
@@ -260,6 +257,18 @@ def sweep(args: SweepArgs) -> int:
     if code == 0:
         print(f"total {time.perf_counter() - t0:.1f} s")
     return code
+
+
+def _moves(option: str, spec: str | None, args: SweepArgs, skip: int = 0) -> tuple:
+    """The instances ``option`` gives (none when not given), or ValueError naming it."""
+    from .instances import parse_instances
+
+    if spec is None:
+        return ()
+    try:
+        return parse_instances(spec, seed=args.instance_seed, preset=args.preset, n_control=args.n_control, skip=skip)
+    except ValueError as exc:
+        raise ValueError(f"{option}: {exc}") from None
 
 
 def _command(name: str) -> str:
