@@ -265,8 +265,8 @@ def _run(cfg, out, front, backend, scheduler, workers, dask_processes, progress,
                     break
                 before = int(alive.sum())
                 alive = decide(cfg, scores, alive, seeds_done)
-                say(f"round {r}: seeds {seeds.start}..{seeds.stop - 1}, {before} settings raced, "
-                    f"{int(alive.sum())} left")
+                say(f"round {r}: {'blocks' if cfg.instances else 'seeds'} {seeds.start}..{seeds.stop - 1}, "
+                    f"{before} settings raced, {int(alive.sum())} left")
                 r += 1
                 if alive.sum() <= 1 or seeds_done >= cfg.n_blocks:
                     break
