@@ -29,9 +29,8 @@ from scipy.stats import wilcoxon
 from .. import algorithms, plots
 from .config import SweepConfig, blocks_of
 from .design import Setting, symbol
-from .report import Study, load_study, markdown_table, report
+from .report import Study, best_setting, load_study, markdown_table, report
 from .resume import prepare_folder, run_sweep
-from .testset import elites
 
 __all__ = ["ABLATION_FOLDER", "Step", "default_of", "ablation_steps", "run_ablation", "ablation_section"]
 
@@ -109,10 +108,10 @@ def run_ablation(cfg: SweepConfig, out: Path, *, top: int = 10, log: Callable[[s
     docstring): :func:`ablation_steps` with each step's settings run as a study in
     ``out/ablation/step-<k>``, reported. Returns the steps (none when the best setting is
     the default)."""
-    study = load_study(out)
-    if not elites(study.summary):
+    index = best_setting(load_study(out).summary)
+    if index is None:
         raise RuntimeError("no setting has a complete set of scores: there is no best setting to ablate")
-    best = cfg.settings[study.summary.finalists.nonzero()[0][study.summary.comparison.best]]
+    best = cfg.settings[index]
 
     def evaluate(k: int, current: Setting, candidates: list[Setting]):
         if k == 0:

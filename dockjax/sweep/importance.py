@@ -32,7 +32,7 @@ from optuna.importance import PedAnovaImportanceEvaluator, get_param_importances
 
 from .config import SweepConfig
 
-__all__ = ["Importance", "RESAMPLES", "varied_parameters", "importances"]
+__all__ = ["Importance", "RESAMPLES", "SETTING_FIELDS", "varied_parameters", "importances"]
 
 TOP_QUANTILE = 0.1
 """PED-ANOVA's top quantile (Optuna's default), raised where needed so that the top holds
@@ -43,6 +43,8 @@ parameters then all look equally important (0.5 each, whatever the scores)."""
 MIN_SETTINGS = 2 * TOP_SETTINGS
 """Fewest settings of one algorithm whose importances are computed (the top must be a
 proper part of them)."""
+SETTING_FIELDS = ("pop", "iterations", "refine_steps")
+"""Hyper-parameters of a setting that are not ``Params`` fields (all integers)."""
 RESAMPLES = 100
 """Bootstrap resamples of the blocks behind each importance interval."""
 INDICATORS = (("HV", "maximize"), ("IGD+", "minimize"))
@@ -72,7 +74,7 @@ def _value(setting, name: str) -> float:
 def varied_parameters(cfg: SweepConfig, members: Sequence[int]) -> list[str]:
     """The hyper-parameters that take at least two values among the settings ``members``
     (``Params`` fields, then ``pop``, ``iterations`` and ``refine_steps``, the memetic finish)."""
-    names = sorted({k for i in members for k, _ in cfg.settings[i].params}) + ["pop", "iterations", "refine_steps"]
+    names = sorted({k for i in members for k, _ in cfg.settings[i].params}) + list(SETTING_FIELDS)
     out = []
     for name in names:
         values = {_value(cfg.settings[i], name) for i in members}
@@ -131,7 +133,7 @@ def importances(cfg: SweepConfig, matrices: dict[str, np.ndarray], *, resamples:
         if len(names) < 2 or len(members) < MIN_SETTINGS:
             continue
         params = {k: np.array([_value(cfg.settings[i], k) for i in members], np.float64) for k in names}
-        integer = {k: k in ("pop", "iterations", "refine_steps") or isinstance(_value(cfg.settings[members[0]], k), int)
+        integer = {k: k in SETTING_FIELDS or isinstance(_value(cfg.settings[members[0]], k), int)
                    for k in names}
         common = np.flatnonzero(np.all([np.isfinite(np.asarray(matrices[ind], np.float64)[members]).all(axis=0)
                                         for ind, _ in INDICATORS], axis=0))

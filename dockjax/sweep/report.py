@@ -36,7 +36,7 @@ from ..io import atomic_savez, atomic_write_text, write_set
 from .config import COLUMNS, INDICATOR_COLUMNS, SweepConfig, blocks_of, round_seeds
 from .design import symbol
 from .files import finished_chunks, load_npz, reference_path
-from .importance import Importance, importances
+from .importance import SETTING_FIELDS, Importance, importances
 from .race import replay
 
 __all__ = ["Study", "Summary", "load_table", "load_config", "load_study", "summarise", "report", "write_table",
@@ -90,6 +90,13 @@ def _matrix(cfg: SweepConfig, cols, column: str) -> np.ndarray:
     M = np.full((len(cfg.settings), cfg.n_blocks), np.nan)
     M[cols["setting"], blocks_of(cfg, cols)] = cols[column]
     return M
+
+
+def best_setting(summary: "Summary") -> int | None:
+    """Index of the best setting by median HV among the finalists (None when nothing
+    could be compared)."""
+    c = summary.comparison
+    return None if c is None else int(np.flatnonzero(summary.finalists)[c.best])
 
 
 def _blocks_word(cfg: SweepConfig, n: int) -> str:
@@ -379,7 +386,7 @@ def _leading(study: Study, rows: list[dict]) -> list[int]:
 
 def _symbol(algorithm: str, name: str) -> str:
     """A varied parameter's label: the paper's symbol of a ``Params`` field, else its name."""
-    return name if name in ("pop", "iterations", "refine_steps") else symbol(algorithm, name)
+    return name if name in SETTING_FIELDS else symbol(algorithm, name)
 
 
 def _importance_section(study: Study) -> list[str]:
