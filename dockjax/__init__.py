@@ -17,7 +17,7 @@ import importlib
 from .problem import DockingProblem
 from .version import __version__
 
-MODULES = ("algorithms", "best_known", "bspline", "bulk", "checks", "cli", "config", "decoding", "devices",
+MODULES = ("algorithms", "best_known", "bspline", "bulk", "checks", "cli", "config", "decoding", "devices", "export",
            "extrema", "fusion", "instances", "interop", "io", "jets", "kinematics", "limits", "metrics", "objectives",
            "optimize", "pareto", "plan", "plots", "problem", "prng", "pytrees", "refine", "right_arm", "robot",
            "runtime", "select", "solve", "sqp", "stats", "store", "sweep", "track", "trajectory", "version")

@@ -65,12 +65,28 @@ def interior_knots(u):
     return u[DEGREE + 1 : u.shape[-1] - DEGREE - 1]
 
 
-def control_points(start, goal, interior):
-    """Control points of Eqs. 18–19. start, goal: (d,); interior: (n, d) → (n + 6, d)."""
+def control_points(start, goal, interior, h=None, boundary=None):
+    """Control points of Eqs. 18–19. start, goal: (d,); interior: (n, d) → (n + 6, d).
+
+    At rest at both ends (``boundary`` None) the first three are the start and the last
+    three the goal (Eq. 19). ``boundary``: ``(v0, a0, v1, a1)``, each (d,), the velocity and
+    acceleration at t = 0 and at T, with ``h`` (n + 1,) the knot intervals: the clamped
+    quintic's end derivatives p'(0) = 5 (P1 − P0) / h1 and
+    p''(0) = 20 / h1 · ((P2 − P1) / (h1 + h2) − (P1 − P0) / h1), solved for P1 and P2
+    (conventions §2), and the same at T with the time reversed."""
     interior = jnp.asarray(interior)
-    start = jnp.broadcast_to(jnp.asarray(start, interior.dtype), (3, interior.shape[-1]))
-    goal = jnp.broadcast_to(jnp.asarray(goal, interior.dtype), (3, interior.shape[-1]))
-    return jnp.concatenate([start, interior, goal], axis=0)
+    d = interior.shape[-1]
+    start = jnp.asarray(start, interior.dtype)
+    goal = jnp.asarray(goal, interior.dtype)
+    if boundary is None:
+        return jnp.concatenate([jnp.broadcast_to(start, (3, d)), interior, jnp.broadcast_to(goal, (3, d))], axis=0)
+    v0, a0, v1, a1 = (jnp.asarray(b, interior.dtype) for b in boundary)
+    h = jnp.asarray(h, interior.dtype)
+    p1 = start + v0 * (h[0] / 5.0)
+    p2 = p1 + (h[0] + h[1]) * (v0 / 5.0 + a0 * (h[0] / 20.0))
+    q1 = goal - v1 * (h[-1] / 5.0)
+    q2 = q1 + (h[-1] + h[-2]) * (a1 * (h[-1] / 20.0) - v1 / 5.0)
+    return jnp.concatenate([jnp.stack([start, p1, p2]), interior, jnp.stack([q2, q1, goal])], axis=0)
 
 
 def line_control_points(start, goal, n: int = N_SPANS - 1):

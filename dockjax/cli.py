@@ -413,8 +413,8 @@ def compare(args: CompareArgs) -> int:
 @dataclass(frozen=True)
 class PlanArgs:
     """Plan one certified docking trajectory and write trajectory.csv, summary.json and three figures (front.png,
-    trajectory.png, limits.png) into --out. Exit codes: 0 planned, 1 no trajectory meets the limits (the limit is
-    named), 2 bad input."""
+    trajectory.png, limits.png) into --out, and with --export the controller files. Exit codes: 0 planned, 1 no
+    trajectory meets the limits (the limit is named), 2 bad input."""
 
     start: Pose = config.START
     """Measured cabin pose x y z [mm] pitch yaw roll [deg]."""
@@ -437,7 +437,10 @@ class PlanArgs:
     """Plan of exactly this many seconds: the least jerk at that duration, overriding --select and --weights (exit 1
     below the shortest feasible time, naming the limit that binds it)."""
     rate: float = config.RATE
-    """Servo rate of the CSV [Hz]."""
+    """Servo rate of the CSV and the exports [Hz]."""
+    export: tuple[Literal["ros2", "axes"], ...] = ()
+    """Controller files: ros2 writes trajectory_ros2.yaml and .json (a ROS 2 trajectory_msgs/JointTrajectory in m and
+    rad, points at every knot time and at --rate), axes one set-point CSV per joint (axis-<joint>.csv at --rate)."""
     method: Method = "direct"
     """How the front is found: direct (shortest time, then the least jerk at --n-front time caps, by SQP) or an
     optimiser run (--pop, --iters, --seed, --refine-steps) whose chosen point is then solved to least jerk."""
@@ -541,7 +544,7 @@ def plan(args: PlanArgs) -> int:
                              progress=args.progress and sys.stderr.isatty())
         if p is None:
             return code
-        files += write_plan(p, args.out)
+        files += write_plan(p, args.out, export=args.export)
     print(f"planned T = {p.T:.3f} s, jerk = {p.jerk:.5g} (shortest feasible T = {p.settings['shortest_T_s']:.3f} s); "
           f"every limit certified at {args.rate:g} Hz and by the kernel's rigorous per-span maxima")
     if args.explain:

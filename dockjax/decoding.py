@@ -34,7 +34,7 @@ def decode(problem: "DockingProblem", x):
     else:
         interior = x[s:].reshape(problem.n_control, config.N_POSE)
     u = bspline.knots(h)
-    ctrl = bspline.control_points(problem.start, problem.goal, interior)
+    ctrl = bspline.control_points(problem.start, problem.goal, interior, h, problem.boundary)
     # Materialise: stops XLA from re-fusing (and so recomputing) the conversion into
     # every broadcasting consumer downstream.
     return materialize((h, u, bspline.span_coefficients(ctrl, u)))

@@ -28,6 +28,7 @@ from tqdm import tqdm
 from . import checks, config, plots, robot, select, solve, store
 from .algorithms import ALGORITHMS
 from .bulk import BatchPlan, plan_batch
+from .export import EXPORTS, axis_tables, joint_trajectory, to_json, to_yaml
 from .io import DamagedFileError, atomic_savez, atomic_write_text, check_input_file, load_npz, write_set
 from .metrics import nondominated_points
 from .optimize import optimize
@@ -327,9 +328,9 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
 
 
 def check_move(problem: DockingProblem) -> None:
-    """ValueError when the start is the goal: there is nothing to plan (every trajectory of
-    the box that stays put is optimal, whatever its time)."""
-    if np.array_equal(np.asarray(problem.start), np.asarray(problem.goal)):
+    """ValueError when the start is the goal, at rest at both: there is nothing to plan
+    (every trajectory of the box that stays put is optimal, whatever its time)."""
+    if problem.boundary is None and np.array_equal(np.asarray(problem.start), np.asarray(problem.goal)):
         raise ValueError(f"start and goal are the same pose {np.asarray(problem.start).tolist()}: there is no move "
                          "to plan")
 
@@ -700,6 +701,36 @@ class Planner:
         w = select.check_weights(weights, 2)
         problem = self._problem_for(start, goal)
         check_move(problem)
+        return self._solve(problem, w)
+
+    def replan(self, plan: Plan, t: float, goal=None, *, weights=None) -> Plan:
+        """A certified plan from the state of ``plan`` at its time ``t`` (s, in [0, T]): its
+        pose, velocity and acceleration (``start_velocity`` and ``start_acceleration`` of
+        the new problem), to ``goal`` (6,) (default ``plan``'s), with ``plan``'s home,
+        limits and interval bounds, chosen by ``weights`` (default ``plan``'s). The new
+        plan's time 0 is ``plan``'s time ``t``: followed one after the other, the two are
+        continuous in position, velocity and acceleration (the new spline's first control
+        points are solved from that state, :func:`dockjax.bspline.control_points`).
+        ``plan`` must be of this planner's spline family (its ``n_control``). Solved as
+        :meth:`plan` solves, from the template's points carried over."""
+        if not isinstance(plan, Plan):
+            raise ValueError(f"plan must be a Plan, got {type(plan).__name__}")
+        if plan.problem.n_control != self.problem.n_control:
+            raise ValueError(f"plan has n_control={plan.problem.n_control}, this planner "
+                             f"{self.problem.n_control}: replan with a Planner of the plan's problem")
+        w = select.check_weights(plan.weights if weights is None else weights, 2)
+        t = checks.number("t", t, 0.0, plan.T)
+        pose, velocity, acceleration = (plan.trajectory.pose([t], k)[0] for k in range(3))
+        fields = plan.problem.identity()
+        fields.update(start=pose, start_velocity=velocity, start_acceleration=acceleration,
+                      goal=plan.problem.goal if goal is None else goal)
+        problem = DockingProblem(**fields)
+        check_move(problem)
+        return self._solve(problem, w, replanned_at_s=float(t))
+
+    def _solve(self, problem: DockingProblem, w, **extra) -> Plan:
+        """:meth:`plan`'s solve of ``problem`` (checked) at weights ``w``, from the
+        template's points carried over."""
         self.warm()
         X = solve.map_to(problem, self.problem, self._template)
         first = solve.certify_scaling(problem, X[0])
@@ -724,9 +755,10 @@ class Planner:
         samples = _certify(problem, chosen.x, self.rate)
         why = explain(problem, chosen, samples, time_optimal=chosen is shortest, check=False)
         settings = {"weights": list(map(float, w)), "rate": self.rate, "method": "planner", "n_front": self.n_front,
-                    "shortest_T_s": float(shortest.F[0])}
+                    "shortest_T_s": float(shortest.F[0]), **extra}
         return Plan(problem, problem.decode(chosen.x), chosen.x, float(chosen.F[0]), float(chosen.F[1]),
-                    nondominated_points(np.array([s.F for s in sols])), samples, self.rate, tuple(w), settings, why)
+                    nondominated_points(np.array([s.F for s in sols])), samples, self.rate, tuple(w), settings,
+                    why)
 
 
 def explain_text(why: dict) -> str:
@@ -753,20 +785,37 @@ def explain_text(why: dict) -> str:
     return "\n".join(lines)
 
 
-def write_plan(p: Plan, out: str | Path) -> list[Path]:
+def write_plan(p: Plan, out: str | Path, export: tuple[str, ...] = ()) -> list[Path]:
     """Write trajectory.csv, summary.json, front.png, trajectory.png and, when a binding
     limit is worth something, limits.png (:func:`dockjax.plots.worth_drawing`) into ``out``
     as one set (:func:`dockjax.io.write_set`): a failure while writing leaves the previous
-    plan's files untouched, and a limits.png of an earlier plan is removed."""
-    return write_set(out, lambda stage: _write_plan_files(p, stage), owned=PLAN_FILES)
+    plan's files untouched, and files of an earlier plan that this one does not write
+    (limits.png, exports) are removed. ``export``: any of :data:`dockjax.export.EXPORTS`:
+    ``"ros2"`` adds trajectory_ros2.yaml and trajectory_ros2.json (a ROS 2
+    ``JointTrajectory``, :func:`dockjax.export.joint_trajectory`), ``"axes"`` one
+    axis-<joint>.csv per joint (:func:`dockjax.export.axis_tables`), both at the plan's rate."""
+    export = tuple(export)
+    unknown = [e for e in export if e not in EXPORTS]
+    if unknown:
+        raise ValueError(f"export must be any of {', '.join(EXPORTS)}, got {', '.join(map(repr, unknown))}")
+    return write_set(out, lambda stage: _write_plan_files(p, stage, export), owned=PLAN_FILES)
 
 
-PLAN_FILES = ("trajectory.csv", "summary.json", "front.png", "trajectory.png", "limits.png")
+ROS2_FILES = ("trajectory_ros2.yaml", "trajectory_ros2.json")
+AXIS_FILES = tuple(f"axis-{name}.csv" for name in config.JOINT_NAMES)
+PLAN_FILES = ("trajectory.csv", "summary.json", "front.png", "trajectory.png", "limits.png", *ROS2_FILES, *AXIS_FILES)
 """Every file :func:`write_plan` may write."""
 
 
-def _write_plan_files(p: Plan, out: Path) -> list[Path]:
+def _write_plan_files(p: Plan, out: Path, export: tuple[str, ...] = ()) -> list[Path]:
     files = [p.trajectory.to_csv(out / "trajectory.csv", p.rate)]
+    if "ros2" in export:
+        msg = joint_trajectory(p.trajectory, p.rate)
+        for name, text in zip(ROS2_FILES, (to_yaml(msg), to_json(msg))):
+            files.append(atomic_write_text(out / name, text))
+    if "axes" in export:
+        for name, text in zip(AXIS_FILES, axis_tables(p.trajectory, p.rate).values()):
+            files.append(atomic_write_text(out / name, text))
     summary = {
         "dockjax_version": __version__,
         "T_s": p.T,

@@ -226,6 +226,39 @@ def plot_anytime(curves: dict[str, tuple[np.ndarray, np.ndarray]], path, *, titl
                    legend_size=7)
 
 
+def plot_deviation(lines: dict[str, tuple[np.ndarray, np.ndarray]], path, *, xlabel: str, ylabel: str,
+                   title: str) -> Path:
+    """Log-log lines with markers, ``label → (x (k,), y (k,))`` (zeros drawn at 1e-12)."""
+    fig, ax = _axes()
+    for label, (x, y) in lines.items():
+        ax.plot(x, np.maximum(y, 1e-12), marker="o", label=label)
+    ax.set_xscale("log")
+    return _finish(fig, ax, path, xlabel=xlabel, ylabel=ylabel, title=title, log_y=True)
+
+
+def plot_joined(first: dict[str, np.ndarray], second: dict[str, np.ndarray], t_switch: float, path) -> Path:
+    """The joints' velocities of a plan (``first``'s samples) until ``t_switch`` s, then of
+    the plan made from its state there (``second``'s samples, its time 0 drawn at
+    ``t_switch``), with the rest of the first dashed: linear joints (mm/s) and rotary
+    joints (°/s) in two panels."""
+    fig, axes = _axes(1, 2, figsize=(12.0, 4.0))
+    before = first["t"] <= t_switch
+    for ax, unit in zip(axes, ("mm", "deg")):
+        for j, (name, u) in enumerate(zip(config.JOINT_NAMES, config.JOINT_UNITS)):
+            if u != unit:
+                continue
+            line, = ax.plot(first["t"][before], first["velocity"][before, j], lw=1.0, label=name)
+            ax.plot(first["t"][~before], first["velocity"][~before, j], lw=0.8, ls="--", color=line.get_color(),
+                    alpha=0.5)
+            ax.plot(t_switch + second["t"], second["velocity"][:, j], lw=1.0, color=line.get_color())
+        ax.axvline(t_switch, color="k", lw=0.6, ls=":")
+        ax.set(xlabel="t [s]", ylabel=f"velocity [{unit}/s]",
+               title=f"replanned at t = {t_switch:.2f} s (dashed: the first plan's rest)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    return save(fig, path)
+
+
 def plot_eaf(surface_a: np.ndarray, surface_b: np.ndarray, diff: np.ndarray, label_a: str, label_b: str,
              runs_a: int, runs_b: int, reference: np.ndarray, path) -> Path:
     """Median attainment surfaces of two settings (points (k, 2) each) and their EAF

@@ -57,6 +57,10 @@ def _per_joint(name: str, value) -> np.ndarray:
     return np.tile(arr, 2) if arr.shape[0] == 4 else arr
 
 
+BOUNDARY_FIELDS = ("start_velocity", "start_acceleration", "goal_velocity", "goal_acceleration")
+"""The fields of :attr:`DockingProblem.boundary`."""
+
+
 @pytree_dataclass(kw_only=True, eq=False)
 class DockingProblem:
     """The paper's trajectory-planning problem as a batched scoring kernel.
@@ -64,6 +68,12 @@ class DockingProblem:
     Keyword arguments (defaults in :mod:`dockjax.config`, conventions §1–6; mm, s, degrees):
 
     * ``start``, ``goal``: poses ``[x, y, z, pitch, yaw, roll]`` (6,).
+    * ``start_velocity``, ``start_acceleration``, ``goal_velocity``, ``goal_acceleration``:
+      the pose's velocity (mm/s, °/s) and acceleration (mm/s², °/s²) at t = 0 and at T
+      (6,) each; default None: at rest (the paper). When any is non-zero the first and
+      last two control points follow from them and the intervals
+      (:func:`dockjax.bspline.control_points`), the others default to zero, and
+      :attr:`boundary` holds the four; all zero is the same as None.
     * ``arm_distance``: ``D_2``, distance between the arm ends (mm).
     * ``interval_bounds``: ``(lo, hi)`` of each knot interval ``h_k`` (s), ``0 < lo < hi``.
     * ``travel``, ``velocity``, ``acceleration``: limits of Table 2, 4 numbers in the arm
@@ -126,6 +136,10 @@ class DockingProblem:
 
     start: Any = config.START
     goal: Any = config.GOAL
+    start_velocity: Any = None
+    start_acceleration: Any = None
+    goal_velocity: Any = None
+    goal_acceleration: Any = None
     arm_distance: Any = config.ARM_DISTANCE
     interval_bounds: Any = config.INTERVAL_BOUNDS
     travel: Any = config.TRAVEL
@@ -156,6 +170,12 @@ class DockingProblem:
         if lo <= 0 or lo >= hi:
             raise ValueError(f"interval_bounds must satisfy 0 < lo < hi, got ({lo}, {hi})")
         mg = checks.vector("margin", [self.margin], (1,))[0]
+        states = {k: None if getattr(self, k) is None else checks.vector(k, getattr(self, k), (6,))
+                  for k in BOUNDARY_FIELDS}
+        if all(v is None or not np.any(v) for v in states.values()):
+            states = dict.fromkeys(BOUNDARY_FIELDS)
+        else:
+            states = {k: np.zeros(6) if v is None else v for k, v in states.items()}
         if mg < 0:
             raise ValueError(f"margin must be >= 0, got {mg}")
         names = ("travel", "velocity", "acceleration")
@@ -195,7 +215,7 @@ class DockingProblem:
         for k, v in (("start", start_a), ("goal", goal_a), ("arm_distance", float(d2)),
                      ("interval_bounds", (float(lo), float(hi))), ("travel", travel), ("velocity", velocity),
                      ("acceleration", acceleration), ("jerk", jerk_a), ("home", home_a), ("margin", float(mg)),
-                     ("reduced", bool(self.reduced)), ("box", (lower, upper))):
+                     ("reduced", bool(self.reduced)), *states.items(), ("box", (lower, upper))):
             set_(k, v)
         right_arm = self.right_arm
         if right_arm == "exact":
@@ -238,6 +258,14 @@ class DockingProblem:
         return robot.Robot(arm_distance=self.arm_distance, home=self.home, limits=self.limits)
 
     @property
+    def boundary(self) -> tuple | None:
+        """``(start_velocity, start_acceleration, goal_velocity, goal_acceleration)``, each
+        (6,), or None when the trajectory starts and ends at rest."""
+        if self.start_velocity is None:
+            return None
+        return tuple(getattr(self, k) for k in BOUNDARY_FIELDS)
+
+    @property
     def kinds(self) -> tuple:
         """The limit kinds of the table's columns (:data:`dockjax.robot.LIMIT_KINDS`): travel,
         velocity, acceleration, and jerk when the problem has jerk limits."""
@@ -270,7 +298,8 @@ class DockingProblem:
         for f in dataclasses.fields(self):
             if not f.init or f.name == "box":
                 continue
-            if (f.name == "n_control" and self.n_control == config.N_FREE) or (f.name == "jerk" and self.jerk is None):
+            if ((f.name == "n_control" and self.n_control == config.N_FREE)
+                    or (f.name in ("jerk", *BOUNDARY_FIELDS) and getattr(self, f.name) is None)):
                 continue  # left out at their defaults: the identities and the caches keyed on them stay as they were
             v = getattr(self, f.name)
             out[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple, list)) else v

@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import lsq_linear, minimize
 
 from . import config, extrema, robot
-from .bspline import insert_knots, poly_derivative, poly_eval, split_counts
+from .bspline import control_points, insert_knots, poly_derivative, poly_eval, split_counts
 from .decoding import spans
 from .fusion import materialize
 from .kinematics import inverse_kinematics
@@ -301,6 +301,8 @@ def floor_infeasibility(problem: DockingProblem) -> PlanError | None:
     joint's velocity limit, or its acceleration limit when even an unlimited velocity would
     not do (``4 d / T² > a``); ``excess``: the least peak of that quantity over its limit,
     minus 1, at the longest T. None otherwise."""
+    if problem.boundary is not None:  # the floor is for moves from rest to rest
+        return None
     moves, (vs, accs) = _joint_moves(problem), _rate_limits(problem)
     floor = _bang_bang(moves, vs, accs)
     T = problem.n_intervals * problem.interval_bounds[1]
@@ -765,8 +767,9 @@ def refine_family(problem: DockingProblem, source: DockingProblem, x) -> np.ndar
     if pieces.min() < problem.interval_bounds[0] or pieces.max() > problem.interval_bounds[1]:
         return None
     u = np.concatenate([np.zeros(6), np.cumsum(h)[:-1], np.full(6, h.sum())])
-    ctrl = np.concatenate([np.tile(source.start, (3, 1)), x[source.n_intervals:].reshape(-1, config.N_POSE),
-                           np.tile(source.goal, (3, 1))])
+    with jax.enable_x64(True):
+        ctrl = np.asarray(control_points(source.start, source.goal,
+                                                 x[source.n_intervals:].reshape(-1, config.N_POSE), h, source.boundary))
     t0 = np.concatenate([[0.0], np.cumsum(h)])
     new = np.concatenate([t0[k] + h[k] * np.arange(1, m) / m for k, m in enumerate(counts)])
     _, fine = insert_knots(u, ctrl, new)

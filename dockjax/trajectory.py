@@ -25,9 +25,10 @@ from .store import stored_jit
 if TYPE_CHECKING:
     from .problem import DockingProblem
 
-__all__ = ["Trajectory", "sample_times", "sample_bucket", "bucket_durations"]
+__all__ = ["Trajectory", "sample_times", "sample_bucket", "bucket_durations", "COLUMN_SUFFIXES"]
 
-_SUFFIX = ("", "_vel", "_acc", "_jerk")
+COLUMN_SUFFIXES = ("", "_vel", "_acc", "_jerk")
+"""Suffix of a joint's column name for its time derivative of order 0..3 (the CSVs)."""
 
 
 def sample_times(T: float, rate: float) -> np.ndarray:
@@ -93,9 +94,9 @@ class Trajectory:
                 interior = np.asarray(bspline.line_control_points(problem.start, problem.goal, problem.n_control))
         else:
             interior = self.x[problem.n_intervals :].reshape(problem.n_control, config.N_POSE)
-        self.control_points = np.concatenate(
-            [np.tile(problem.start, (3, 1)), interior, np.tile(problem.goal, (3, 1))]
-        )
+        with jax.enable_x64(True):
+            self.control_points = np.asarray(bspline.control_points(problem.start, problem.goal, interior,
+                                                                    self.intervals, problem.boundary))
 
     def __repr__(self) -> str:
         return f"Trajectory(T={self.T:.6g} s, intervals={np.round(self.intervals, 6).tolist()})"
@@ -139,20 +140,24 @@ class Trajectory:
         """Times ``k / rate`` for ``k = 0, 1, …`` up to T, and a last one at exactly T."""
         return sample_times(self.T, rate)
 
-    def sample(self, rate: float) -> dict[str, np.ndarray]:
-        """Samples at :meth:`sample_times`: ``t`` (m,), ``pose`` (m, 6) and, per joint,
+    def at(self, t) -> dict[str, np.ndarray]:
+        """The state at times ``t`` (m,) in [0, T] s: ``t``, ``pose`` (m, 6) and, per joint,
         ``position``, ``velocity``, ``acceleration``, ``jerk`` (m, 8)."""
-        t = self.sample_times(rate)
+        t = self._times(t)
         pose, joints = self._jets(t)
         out = {"t": t, "pose": pose[..., 0]}
-        for k, name in enumerate(("position", "velocity", "acceleration", "jerk")):
+        for k, name in enumerate(robot.DERIVATIVES):
             out[name] = joints[..., k]
         return out
+
+    def sample(self, rate: float) -> dict[str, np.ndarray]:
+        """:meth:`at` the :meth:`sample_times` (``rate`` Hz, a last sample at exactly T)."""
+        return self.at(self.sample_times(rate))
 
     def csv_header(self) -> list[str]:
         cols = ["t [s]"] + [f"{n} [{u}]" for n, u in zip(config.POSE_NAMES, config.POSE_UNITS)]
         for name, unit in zip(config.JOINT_NAMES, config.JOINT_UNITS):
-            cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(_SUFFIX, config.RATE_SUFFIXES)]
+            cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(COLUMN_SUFFIXES, config.RATE_SUFFIXES)]
         return cols
 
     def to_csv(self, path: str | os.PathLike, rate: float) -> Path:

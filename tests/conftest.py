@@ -166,10 +166,11 @@ def _cli(argv: list[str]) -> tuple[int, str]:
 
 @pytest.fixture(scope="session")
 def paper_plan(run_once):
-    """``dockjax plan --rate 200 --n-front 3`` (the paper's move, the compromise of Eq. 26;
+    """``dockjax plan --rate 200 --n-front 3 --export ros2 axes`` (the paper's move, the compromise of Eq. 26;
     three time caps of the front to choose from), made once: its folder."""
     def make(folder):
-        code, _ = _cli(["plan", "--rate", "200", "--n-front", "3", "--out", str(folder / "plan")])
+        code, _ = _cli(["plan", "--rate", "200", "--n-front", "3", "--export", "ros2", "axes", "--out",
+                        str(folder / "plan")])
         assert code == 0
         return folder / "plan"
 

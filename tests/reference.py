@@ -62,9 +62,24 @@ def n_intervals_of(x) -> int:
 
 
 def _as_pose(p) -> np.ndarray:
-    p = np.asarray(p, dtype=np.float64).reshape(-1)
+    """A pose (6,), or the pose of a state (3, 6) (see :func:`control_points`)."""
+    p = np.asarray(p, dtype=np.float64)
+    p = p[0] if p.shape == (3, N_POSE) else p.reshape(-1)
     assert p.shape == (N_POSE,), p.shape
     return p
+
+
+def _end_points(u, state, at_end: bool) -> np.ndarray:
+    """The two control points next to an end (in the order away from it) that give the
+    state ``(pose, velocity, acceleration)`` (3, 6) there: the first and second derivatives
+    at the end are linear in the three end control points, with weights the B-spline basis
+    functions' derivatives, evaluated by SciPy and solved for the two unknowns."""
+    n = len(u) - DEGREE - 1
+    idx = [n - 1, n - 2, n - 3] if at_end else [0, 1, 2]
+    t = u[-1] if at_end else u[0]
+    D = np.array([[BSpline(u, np.eye(n)[i], DEGREE)(t, nu=k) for i in idx] for k in (1, 2)])  # (2, 3)
+    pose, vel, acc = np.asarray(state, dtype=np.float64)
+    return np.linalg.solve(D[:, 1:], np.stack([vel, acc]) - np.outer(D[:, 0], pose))
 
 
 def knots(h) -> np.ndarray:
@@ -75,12 +90,22 @@ def knots(h) -> np.ndarray:
 
 
 def control_points(x, start, goal) -> np.ndarray:
-    """Control points (n + 6, 6): start ×3, the n free points, goal ×3 (``d_0..d_10`` for n = 5)."""
+    """Control points (n + 6, 6): start ×3, the n free points, goal ×3 (``d_0..d_10`` for n = 5).
+
+    ``start`` or ``goal`` may be a state (3, 6), pose, velocity and acceleration: then the
+    two control points next to that end give those derivatives (:func:`_end_points`)."""
     x = np.asarray(x, dtype=np.float64)
-    start, goal = _as_pose(start), _as_pose(goal)
     s = n_intervals_of(x)
     free = x[s:].reshape(s - 1, N_POSE)
-    return np.vstack([np.tile(start, (3, 1)), free, np.tile(goal, (3, 1))])
+    ends = []
+    for p, at_end in ((start, False), (goal, True)):
+        p = np.asarray(p, dtype=np.float64)
+        if p.shape == (3, N_POSE):
+            inner = _end_points(knots(x[:s]), p, at_end)
+            ends.append(np.vstack([p[0], inner]) if not at_end else np.vstack([inner[::-1], p[0]]))
+        else:
+            ends.append(np.tile(_as_pose(p), (3, 1)))
+    return np.vstack([ends[0], free, ends[1]])
 
 
 def pose_spline(x, start, goal) -> BSpline:
@@ -330,6 +355,9 @@ def dense_check(problem, X, n_samples: int = 20001):
     limits = np.asarray(problem.limits, dtype=np.float64)
     start = np.asarray(problem.start, dtype=np.float64)
     goal = np.asarray(problem.goal, dtype=np.float64)
+    if getattr(problem, "start_velocity", None) is not None:  # the end states (3, 6)
+        start = np.stack([start, problem.start_velocity, problem.start_acceleration])
+        goal = np.stack([goal, problem.goal_velocity, problem.goal_acceleration])
     G = []
     for x in X:
         if getattr(problem, "reduced", x.shape == (N_INTERVALS,)):
