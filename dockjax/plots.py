@@ -97,16 +97,16 @@ def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, titl
     """The eight joints' travel about home, velocity, acceleration (and, with a jerk column,
     jerk) as fractions of their limits (one panel per kind of limit, limits ±1 dashed).
     sample: {"t", "position", "velocity", "acceleration", "jerk"} (m, 8); limits (8, kinds)
-    (columns as :data:`dockjax.robot.LIMIT_KINDS`); home (8,) (default: the midpoint of the
-    first and last positions)."""
+    (columns as :data:`dockjax.robot.LIMIT_KINDS`), or (m, 8, kinds) per sample (a staged
+    move's stages); home (8,) (default: the midpoint of the first and last positions)."""
     limits = np.asarray(limits)
-    kinds = robot.kinds_of(limits.shape[1])
+    kinds = robot.kinds_of(limits.shape[-1])
     fig, axes = _axes(len(kinds), 1, figsize=(9, 3 * len(kinds)), sharex=True)
     m = len(sample["t"])
     pick = np.unique(np.append(np.arange(0, m, max(1, -(-m // MAX_PLOT_POINTS))), m - 1))
     pos = sample["position"]
     home = 0.5 * (pos[0] + pos[-1]) if home is None else np.asarray(home)
-    series = [robot.sampled_quantity(sample, k, home) / limits[:, i] for i, k in enumerate(kinds)]
+    series = [robot.sampled_quantity(sample, k, home) / limits[..., i] for i, k in enumerate(kinds)]
     names = [("travel about home" if k.order == 0 else k.name) + " / limit" for k in kinds]
     t = sample["t"][pick]
     for ax, y, name in zip(axes, series, names):

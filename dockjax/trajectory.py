@@ -25,7 +25,8 @@ from .store import stored_jit
 if TYPE_CHECKING:
     from .problem import DockingProblem
 
-__all__ = ["Trajectory", "sample_times", "sample_bucket", "bucket_durations", "COLUMN_SUFFIXES"]
+__all__ = ["Trajectory", "sample_times", "sample_bucket", "bucket_durations", "COLUMN_SUFFIXES", "csv_header",
+           "csv_text"]
 
 COLUMN_SUFFIXES = ("", "_vel", "_acc", "_jerk")
 """Suffix of a joint's column name for its time derivative of order 0..3 (the CSVs)."""
@@ -155,19 +156,30 @@ class Trajectory:
         return self.at(self.sample_times(rate))
 
     def csv_header(self) -> list[str]:
-        cols = ["t [s]"] + [f"{n} [{u}]" for n, u in zip(config.POSE_NAMES, config.POSE_UNITS)]
-        for name, unit in zip(config.JOINT_NAMES, config.JOINT_UNITS):
-            cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(COLUMN_SUFFIXES, config.RATE_SUFFIXES)]
-        return cols
+        """The columns of :meth:`to_csv` (:func:`csv_header`)."""
+        return csv_header()
 
     def to_csv(self, path: str | os.PathLike, rate: float) -> Path:
         """Write time, pose and each joint's position, velocity, acceleration and jerk,
         sampled at ``rate`` Hz with a last row at exactly T, to ``path`` (atomically)."""
-        s = self.sample(rate)
-        per_joint = np.stack([s["position"], s["velocity"], s["acceleration"], s["jerk"]], -1)
-        table = np.concatenate([s["t"][:, None], s["pose"], per_joint.reshape(len(s["t"]), -1)], 1)
-        row = ",".join(["%.17g"] * table.shape[1])
-        text = "\n".join([",".join(self.csv_header()), *(row % tuple(r) for r in table.tolist())]) + "\n"
         path = Path(path)
-        atomic_write_text(path, text)
+        atomic_write_text(path, csv_text(self.sample(rate)))
         return path
+
+
+def csv_header() -> list[str]:
+    """The columns of a trajectory CSV: time, the pose, and each joint's position,
+    velocity, acceleration and jerk, units in brackets."""
+    cols = ["t [s]"] + [f"{n} [{u}]" for n, u in zip(config.POSE_NAMES, config.POSE_UNITS)]
+    for name, unit in zip(config.JOINT_NAMES, config.JOINT_UNITS):
+        cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(COLUMN_SUFFIXES, config.RATE_SUFFIXES)]
+    return cols
+
+
+def csv_text(samples: dict) -> str:
+    """Samples (:meth:`Trajectory.sample`'s keys) as CSV text under :func:`csv_header`."""
+    s = samples
+    per_joint = np.stack([s[k] for k in robot.DERIVATIVES], -1)
+    table = np.concatenate([s["t"][:, None], s["pose"], per_joint.reshape(len(s["t"]), -1)], 1)
+    row = ",".join(["%.17g"] * table.shape[1])
+    return "\n".join([",".join(csv_header()), *(row % tuple(r) for r in table.tolist())]) + "\n"
