@@ -20,7 +20,7 @@ from .version import __version__
 MODULES = ("algorithms", "best_known", "bspline", "bulk", "checks", "cli", "config", "decoding", "devices", "export",
            "extrema", "fusion", "instances", "interop", "io", "jets", "kinematics", "limits", "metrics", "objectives",
            "optimize", "pareto", "plan", "plots", "problem", "prng", "pytrees", "refine", "right_arm", "robot",
-           "runtime", "select", "solve", "sqp", "stats", "store", "sweep", "track", "trajectory", "version")
+           "runtime", "select", "solve", "sqp", "stages", "stats", "store", "sweep", "track", "trajectory", "version")
 """The public modules, each an attribute of the package."""
 
 NAMES = {"Result": "optimize", "Plan": "plan", "Planner": "plan", "PlanError": "solve", "Trajectory": "trajectory",

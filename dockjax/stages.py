@@ -44,7 +44,7 @@ from .io import atomic_write_text, check_input_file, write_set
 from .objectives import mean_square_jerk, safe_sqrt
 from .plan import BINDING, _certify, _shortest, load_limits
 from .problem import BOUNDARY_FIELDS, DockingProblem
-from .solve import PlanError, candidate_limits, critical_times, scaling_need
+from .solve import RESTART_GAIN, PlanError, candidate_limits, critical_times, scaling_need
 from .trajectory import Trajectory, csv_text
 from .version import __version__
 
@@ -335,14 +335,16 @@ def _solve(prog: _Programme, z0, time_weight: float, cap: float | None, *, reach
     bounds = prog.bounds(reach)
     z = np.clip(z0, [b[0] for b in bounds], [b[1] for b in bounds])
     best = None
-    for _ in range(3):  # a restart renews SLSQP's curvature estimate, kept only when it does better
+    for _ in range(3):  # a restart renews SLSQP's curvature estimate, while it does better
         res = minimize(lambda z: vals(z)[0], z, jac=lambda z: vals(z)[1], method="SLSQP", bounds=bounds,
                        constraints=cons, options={"maxiter": max_iter, "ftol": tol})
         z = res.x
         rank = (max(float(vals(z)[2].max()), FEASIBLE), float(vals(z)[0]))
-        if best is None or rank < best[0]:
+        better = best is None or rank[0] < best[0][0] - RESTART_GAIN or (
+            rank[0] <= best[0][0] and rank[1] < best[0][1] - RESTART_GAIN * abs(best[0][1]))
+        if better:
             best = (rank, z)
-        if res.success:
+        if res.success or not better:
             break
     return best[1]
 
@@ -399,13 +401,14 @@ first steps near the start; each step starts from the last one's answer."""
 
 
 def _solved(prog: _Programme, z0, time_weight: float, cap: float | None, restarts: int = 4):
-    """:func:`_solve` from z0 with the vias' states freed step by step (:data:`REACHES`),
+    """:func:`_solve` from z0 with the vias' states freed step by step (:data:`REACHES`)
+    when z0 is at rest at every via,
     certified (:func:`_certified`); while the certificate had to slow the solver's point by
     more than :data:`SCALED_OK` (SLSQP ended outside a limit), solved again from the
     slowed, feasible point. The best certified answer by the programme's objective (the
     total time, or the jerk), or None."""
     best, z = None, z0
-    reaches = list(REACHES) if any(prog.through) else [1.0]
+    reaches = list(REACHES) if any(prog.through) and not np.any(z0[prog.n_z - 12 * sum(prog.through):]) else [1.0]
     for _ in range(len(reaches) + restarts):
         reach = reaches.pop(0) if reaches else 1.0
         got = _certified(prog, _solve(prog, z, time_weight, cap, reach=reach))
@@ -461,12 +464,12 @@ class StagedPlan:
         parts = ", ".join(f"{s.T:.3f} s" for s in self.stages)
         return f"StagedPlan(T={self.T:.4f} s, jerk={self.jerk:.5g}, {len(self.stages)} stages: {parts})"
 
-    def _kept(self) -> list[slice]:
-        """Per stage, its samples on the move's clock: a stage's first sample is left out
-        where it repeats the previous stage's last (no dwell between them)."""
+    def _kept(self) -> list[int]:
+        """Per stage, the first of its samples on the move's clock: 1 where its first sample
+        repeats the previous stage's last (no dwell between them), else 0."""
         out, t_last = [], None
         for s in self.stages:
-            out.append(slice(1, None) if t_last is not None and s.start_s <= t_last + 1e-12 else slice(None))
+            out.append(int(t_last is not None and s.start_s <= t_last + 1e-12))
             t_last = s.start_s + s.samples["t"][-1]
         return out
 
@@ -474,14 +477,14 @@ class StagedPlan:
         """The whole move sampled (each stage's samples on the move's clock, a dwell as its
         two ends): ``t``, ``pose``, ``position``, ``velocity``, ``acceleration``, ``jerk``."""
         kept = self._kept()
-        out = {"t": np.concatenate([s.start_s + s.samples["t"][k] for s, k in zip(self.stages, kept)])}
+        out = {"t": np.concatenate([s.start_s + s.samples["t"][k:] for s, k in zip(self.stages, kept)])}
         for key in ("pose", *robot.DERIVATIVES):
-            out[key] = np.concatenate([s.samples[key][k] for s, k in zip(self.stages, kept)])
+            out[key] = np.concatenate([s.samples[key][k:] for s, k in zip(self.stages, kept)])
         return out
 
     def sample_limits(self) -> np.ndarray:
         """The limit table of each sample of :meth:`sample` (its stage's): (m, 8, kinds)."""
-        rows = [np.broadcast_to(np.asarray(s.problem.limits), (len(s.samples["t"][k]),) + np.shape(s.problem.limits))
+        rows = [np.broadcast_to(np.asarray(s.problem.limits), (len(s.samples["t"][k:]),) + np.shape(s.problem.limits))
                 for s, k in zip(self.stages, self._kept())]
         return np.concatenate(rows)
 
