@@ -568,8 +568,9 @@ def _plan_staged(args: PlanArgs, weights) -> int:
         for option, given in (("--duration", args.duration is not None), ("--export", bool(args.export)),
                               ("--explain", args.explain), ("--method", args.method != "direct")):
             if given:
-                raise ValueError(f"{option} does not apply to a staged move (--move); every stage's binding limits "
-                                 "are printed and written to summary.json")
+                why = ("; every stage's binding limits are printed and written to summary.json"
+                       if option == "--explain" else "")
+                raise ValueError(f"{option} does not apply to a staged move (--move){why}")
         check_options(weights, args.rate, args.method, args.pop, args.iters, args.seed, args.refine_steps,
                       args.n_front)
         checks.integer("n_control", args.n_control, 1, config.MAX_CONTROL)
