@@ -401,12 +401,11 @@ first steps near the start; each step starts from the last one's answer."""
 
 
 def _solved(prog: _Programme, z0, time_weight: float, cap: float | None, restarts: int = 4):
-    """:func:`_solve` from z0 with the vias' states freed step by step (:data:`REACHES`)
-    when z0 is at rest at every via,
-    certified (:func:`_certified`); while the certificate had to slow the solver's point by
-    more than :data:`SCALED_OK` (SLSQP ended outside a limit), solved again from the
-    slowed, feasible point. The best certified answer by the programme's objective (the
-    total time, or the jerk), or None."""
+    """:func:`_solve` from z0 (with the vias' states freed step by step, :data:`REACHES`,
+    when z0 is at rest at every via), certified (:func:`_certified`); while the certificate
+    had to slow the solver's point by more than :data:`SCALED_OK` (SLSQP ended outside a
+    limit), solved again from the slowed, feasible point. The best certified answer by the
+    programme's objective (the total time, or the jerk), or None."""
     best, z = None, z0
     reaches = list(REACHES) if any(prog.through) and not np.any(z0[prog.n_z - 12 * sum(prog.through):]) else [1.0]
     for _ in range(len(reaches) + restarts):
