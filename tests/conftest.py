@@ -108,12 +108,12 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=_order)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def run_once(tmp_path_factory) -> Callable[[str, Callable[[pathlib.Path], Any]], Any]:
     """``run_once(name, make)``: ``make(folder)`` computed once per test run across the xdist
     workers (a file lock; the value pickled beside its folder), then returned to every
-    caller. ``folder`` is a fresh directory shared by the workers, for files ``make``
-    writes."""
+    caller (a module after the first loads the pickle). ``folder`` is a fresh directory
+    shared by the workers, for files ``make`` writes."""
     root = tmp_path_factory.getbasetemp()
     root = root.parent if os.environ.get("PYTEST_XDIST_WORKER") else root  # shared by the workers
     values: dict[str, Any] = {}
@@ -164,7 +164,7 @@ def _cli(argv: list[str]) -> tuple[int, str]:
     return code, text.getvalue()
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def paper_plan(run_once):
     """``dockjax plan --rate 200 --n-front 3 --export ros2 axes`` (the paper's move, the compromise of Eq. 26;
     three time caps of the front to choose from), made once: its folder."""
@@ -177,7 +177,7 @@ def paper_plan(run_once):
     return run_once("paper-plan", make)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def wide_time_plan(run_once):
     """The wide preset's shortest-time plan, explained and checked by re-planning:
     ``dockjax plan --select time --interval-bounds 0.5 10 --explain --rate 200 --n-front 2``,
@@ -192,7 +192,7 @@ def wide_time_plan(run_once):
     return run_once("wide-time-plan", make)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def wide_compromise_plan(run_once):
     """``plan(make_problem("wide"), weights=(1, 1), n_front=3)`` with its sensitivities
     checked, made once."""
@@ -202,7 +202,7 @@ def wide_compromise_plan(run_once):
     return run_once("wide-compromise-plan", lambda _: plan(make_problem("wide"), weights=(1.0, 1.0), n_front=3))
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def imocs_plan(run_once):
     """``plan(weights=(1, 0), method="imocs", pop_size=8, n_iter=3, rate=50)``, made once
     (the compiled run of tests/test_cuckoo.py's single run)."""
@@ -226,7 +226,7 @@ if os.environ.get("DOCKJAX_LOG_COMPILES"):  # diagnostics: every compilation, pe
         yield
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def pymoo_zdt1_igd(run_once) -> float:
     """The median IGD of pymoo's NSGA-II on its own ZDT1 (population 100, 100 generations,
     seeds 0-4) against 1000 points of the analytic front, made once: the yardstick of the
@@ -248,7 +248,7 @@ def pymoo_zdt1_igd(run_once) -> float:
     return run_once("pymoo-zdt1-igd", make)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def tiny_sweep(run_once):
     """``tests.sweeps.TINY`` run to the end in this process, once: (folder, what it printed)."""
     from tests import sweeps
@@ -261,7 +261,7 @@ def tiny_sweep(run_once):
     return run_once("sweep-tiny", make)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def tiny_race(run_once):
     """``tests.sweeps.RACE`` run to the end in this process, once: (folder, what it printed)."""
     from tests import sweeps

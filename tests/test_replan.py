@@ -76,7 +76,7 @@ def test_moving_ends_are_none_when_all_zero_and_complete_when_one_is_given():
         DockingProblem(goal_velocity=[np.nan] * 6)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def replanned(run_once):
     """A warm Planner's plan of the paper's move, and its replan at T/3 to the goal moved
     0.3 mm along x, made once: ``(first, second, new goal)``."""

@@ -45,7 +45,7 @@ def _cli(argv):
     return code, out.getvalue(), err.getvalue()
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def staged(run_once):
     """``dockjax plan --move move.toml --interval-bounds 0.5 10 --select time --rate 100``,
     made once: (its summary, what it printed)."""
