@@ -143,6 +143,9 @@ def stack_moves(problem: DockingProblem, starts, goals) -> DockingProblem:
         raise ValueError(f"problem must be a DockingProblem, got {type(problem).__name__}")
     if problem.reduced:
         raise ValueError("plan_batch plans full decision vectors: give a problem with reduced=False")
+    if problem.supports is not None:
+        raise ValueError(f"plan_batch plans the paper's two arms; this cabin has {problem.n_supports} supports "
+                         "(plan its moves one at a time with dockjax.plan or a Planner)")
     S = _moves("starts", starts, None)
     G = _moves("goals", goals, S.shape[0])
     B = S.shape[0]

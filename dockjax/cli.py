@@ -421,9 +421,13 @@ class PlanArgs:
     goal: Pose = config.GOAL
     """Docking pose x y z [mm] pitch yaw roll [deg]."""
     limits: Path | None = None
-    """TOML or JSON file overriding travel, velocity, acceleration, jerk (4 or 8 numbers) and home (8)."""
+    """TOML or JSON file overriding travel, velocity, acceleration, jerk (4 or 8 numbers; 4K with --supports) and
+    home (8; 4K)."""
     arm_distance: float = config.ARM_DISTANCE
     """Distance D2 between the arm ends [mm]."""
+    supports: tuple[float, ...] | None = None
+    """Offsets [mm] along the cabin axis of K >= 2 supports, the first 0 (default: the two arms at 0 and
+    --arm-distance); each support has the four joints of an arm, and a limits file then gives 4 or 4K numbers."""
     interval_bounds: tuple[float, float] = config.INTERVAL_BOUNDS
     """Bounds of each knot interval [s] (n-control + 1 of them)."""
     n_control: int = config.N_FREE
@@ -471,7 +475,7 @@ class PlanArgs:
 
 PLAN_OPTIONS = {"weights": "--weights", "rate": "--rate", "method": "--method", "pop_size": "--pop",
                 "n_iter": "--iters", "seed": "--seed", "refine_steps": "--refine-steps", "n_front": "--n-front",
-                "start": "--start", "goal": "--goal", "arm_distance": "--arm-distance",
+                "start": "--start", "goal": "--goal", "arm_distance": "--arm-distance", "supports": "--supports",
                 "interval_bounds": "--interval-bounds", "duration": "--duration", "n_control": "--n-control"}
 """The library's argument names of a plan and the options that give them."""
 
@@ -529,15 +533,18 @@ def plan(args: PlanArgs) -> int:
         checks.integer("n_control", args.n_control, 1, config.MAX_CONTROL)
         if args.method != "direct":
             check_memory(2 * args.pop * config.candidate_bytes(args.n_control), "--pop")
-        check_memory((args.n_control + 1) * max(args.interval_bounds[1], 1.0) * args.rate * 8 * 100,
-                     "--rate over the longest trajectory")
+        check_memory((args.n_control + 1) * max(args.interval_bounds[1], 1.0) * args.rate * 4
+                     * max(2, len(args.supports or ())) * 100, "--rate over the longest trajectory")
         check_out(args.out)
         # before any JAX computation (DockingProblem computes); the direct method solves one
         # trajectory at a time, which one device does fastest
         claim_devices(args.devices if args.devices is not None or args.method != "direct" else 1)
         extra = load_limits(args.limits) if args.limits is not None else {}
         problem = DockingProblem(start=args.start, goal=args.goal, arm_distance=args.arm_distance,
-                                 interval_bounds=args.interval_bounds, n_control=args.n_control, **extra)
+                                 supports=args.supports, interval_bounds=args.interval_bounds,
+                                 n_control=args.n_control, **extra)
+        if args.export and problem.supports is not None:
+            raise ValueError(f"--export is for the paper's two arms; --supports gives {problem.n_supports}")
         check_move(problem)
         check_duration(problem, args.duration)
     except ValueError as exc:
@@ -566,7 +573,8 @@ def _plan_staged(args: PlanArgs, weights) -> int:
 
     try:
         for option, given in (("--duration", args.duration is not None), ("--export", bool(args.export)),
-                              ("--explain", args.explain), ("--method", args.method != "direct")):
+                              ("--explain", args.explain), ("--method", args.method != "direct"),
+                              ("--supports", args.supports is not None)):
             if given:
                 why = ("; every stage's binding limits are printed and written to summary.json"
                        if option == "--explain" else "")

@@ -23,7 +23,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .robot import LEFT_ARM, RIGHT_ARM, arm_joints, cabin_axis
+from .robot import LEFT_ARM, RIGHT_ARM, arm_joints, cabin_axis, cabin_joints
 
 __all__ = [
     "DH_LEFT",
@@ -125,10 +125,15 @@ def inverse_kinematics(pose, arm_distance):
 
     pose: (..., 6) ``[x, y, z, α, β, γ]`` (mm, °). Returns (..., 8) in the joint order
     ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` (mm, °), by :func:`arm_joints`.
+    ``arm_distance`` may also be the offsets (K,) of a cabin's K supports: then (..., 4K)
+    in the order of :func:`dockjax.robot.support_joints`, by :func:`dockjax.robot.cabin_joints`.
     """
     pose = jnp.asarray(pose)
     u = jnp.moveaxis(cabin_axis(pose[..., 3], pose[..., 4]), -1, 0)
-    return jnp.stack(arm_joints(pose[..., 0], pose[..., 1], pose[..., 2], pose[..., 5], *u, arm_distance), axis=-1)
+    args = (pose[..., 0], pose[..., 1], pose[..., 2], pose[..., 5], *u)
+    if np.ndim(arm_distance) == 1:
+        return jnp.stack(cabin_joints(*args, arm_distance), axis=-1)
+    return jnp.stack(arm_joints(*args, arm_distance), axis=-1)
 
 
 def forward_kinematics(joints, arm_distance):

@@ -18,12 +18,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from .right_arm import right_terms
-from .robot import JOINTS, arm_joints
+from .robot import JOINTS, arm_joints, join_pairs
 
 if TYPE_CHECKING:
     from .robot import Robot
 
-__all__ = ["JERK_NODES", "jerk_nodes_for", "jerk", "mean_square_jerk", "safe_sqrt"]
+__all__ = ["JERK_NODES", "jerk_nodes_for", "jerk", "cabin_jerk", "mean_square_jerk", "safe_sqrt"]
 
 
 JERK_NODES = ((1.0, 8), (8.0, 12), (math.inf, 24))
@@ -56,6 +56,16 @@ def jerk(robot: "Robot", c, h, ref, *, nodes: int, differentiable: bool = False)
     joint does not move (refinement, the SQP programmes); the value is the same."""
     sqrt = safe_sqrt if differentiable else jnp.sqrt
     return jnp.sum(sqrt(mean_square_jerk(robot, c, h, ref, nodes)))
+
+
+def cabin_jerk(robots: tuple, c, h, ref, *, nodes: int, differentiable: bool = False):
+    """:func:`jerk` of a cabin on K supports: the sum over its 4K joints, from the mean-square
+    jerks of each pair of supports (:attr:`dockjax.DockingProblem.robots`) joined by
+    :func:`dockjax.robot.join_pairs`; one pair is :func:`jerk`."""
+    if len(robots) == 1:
+        return jerk(robots[0], c, h, ref, nodes=nodes, differentiable=differentiable)
+    sqrt = safe_sqrt if differentiable else jnp.sqrt
+    return jnp.sum(sqrt(join_pairs([mean_square_jerk(rb, c, h, ref, nodes) for rb in robots])))
 
 
 def mean_square_jerk(robot: "Robot", c, h, ref, nodes: int):

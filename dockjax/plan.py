@@ -70,12 +70,13 @@ class Plan:
         the root chain, never understated: exact to rounding for the joints linear in the
         pose, within the right-arm treatment's tolerance for the others)."""
         s, lim = self.samples, self.problem.limits
-        G = robot.by_kind(self.problem.evaluate(self.x[None], screen=False)[1][0])
+        G = robot.by_kind(self.problem.evaluate(self.x[None], screen=False)[1][0], self.problem.n_joints)
         peaks = _sampled_peaks(self.problem, s)
         out = {}
-        for j, name in enumerate(config.JOINT_NAMES):
+        for j, joint in enumerate(self.problem.joints):
+            name = joint.name
             exact = (G[j] + 1.0) * lim[j]
-            row = {"unit": config.JOINT_UNITS[j]}
+            row = {"unit": joint.unit}
             for k, kind in enumerate(self.problem.kinds):
                 label = "max_travel_from_home" if k == 0 else f"max_abs_{kind.name}"
                 row[label] = float(peaks[j, k])
@@ -231,7 +232,7 @@ def _optimiser_front(problem, method, pop_size, n_iter, seed, refine_steps):
     m = res.front[0]
     if not m.any():
         j = int(np.argmin(res.cv[0]))
-        G = robot.by_kind(res.G[0][j])
+        G = robot.by_kind(res.G[0][j], problem.n_joints)
         jj, kk = np.unravel_index(np.argmax(G), G.shape)
         raise PlanError.of_column(
             problem, int(jj), int(kk), f"no feasible trajectory found by {method}: the limit {{limit}} cannot be met "
@@ -255,7 +256,7 @@ def _certify(problem: DockingProblem, x, rate: float) -> dict:
     and every kernel column (never understated) within its limit, else :class:`PlanError`
     naming the worst column."""
     s = problem.decode(x).sample(rate)
-    g = robot.by_kind(problem.evaluate(np.asarray(x)[None], screen=False)[1][0])
+    g = robot.by_kind(problem.evaluate(np.asarray(x)[None], screen=False)[1][0], problem.n_joints)
     excess = np.maximum(_sample_excess(problem, s), g)
     if excess.max() > 0:
         j, k = np.unravel_index(np.argmax(excess), excess.shape)
@@ -284,17 +285,17 @@ def explain(problem: DockingProblem, sol: solve.Solution, samples: dict, *, time
     difference). For a fixed-T plan ``d_jerk_d_T`` is the value of time (the multiplier of
     the cap), checked the same way."""
     sens = solve.sensitivities(problem, sol)
-    G = robot.by_kind(sol.G)
+    G = robot.by_kind(sol.G, problem.n_joints)
     cap = None if time_optimal else float(sol.F[0])
     objective = 0 if time_optimal else 1
     lim = np.asarray(problem.limits)
     keys = [kind.name for kind in problem.kinds]
     rows = []
     for j, k in zip(*np.nonzero(G > -BINDING)):
-        name = config.JOINT_NAMES[j]
+        name = problem.joints[j].name
         series = _sampled_magnitude(problem, samples, problem.kinds[k])[:, j]
         row = {"limit": f"{name} {keys[k]}", "joint": name, "quantity": keys[k],
-               "value": float(lim[j, k]), "unit": config.unit(j, k),
+               "value": float(lim[j, k]), "unit": problem.joints[j].unit + problem.kinds[k].suffix,
                "ratio": float(G[j, k] + 1.0), "time_s": float(samples["t"][int(np.argmax(series))]),
                "sensitivity": float(sens[j, k]) if np.isfinite(sens[j, k]) else None}
         if check:
@@ -470,7 +471,7 @@ def _too_short(problem: DockingProblem, shortest: solve.Solution, duration: floa
     by its sensitivity), or the interval bounds when no limit binds, and the time."""
     T = float(shortest.F[0])
     head = f"no trajectory takes {duration:g} s: the shortest feasible time is {T:.6g} s"
-    G = robot.by_kind(shortest.G)
+    G = robot.by_kind(shortest.G, problem.n_joints)
     sens = np.abs(solve.sensitivities(problem, shortest)) * (G > -BINDING)
     if np.isnan(sens).any():  # sensitivities unknown: the binding column nearest its limit
         sens = np.where(G > -BINDING, G + 1.0, 0.0)
@@ -798,6 +799,8 @@ def write_plan(p: Plan, out: str | Path, export: tuple[str, ...] = ()) -> list[P
     unknown = [e for e in export if e not in EXPORTS]
     if unknown:
         raise ValueError(f"export must be any of {', '.join(EXPORTS)}, got {', '.join(map(repr, unknown))}")
+    if export and p.problem.supports is not None:
+        raise ValueError(f"exports are for the paper's two arms; this cabin has {p.problem.n_supports} supports")
     return write_set(out, lambda stage: _write_plan_files(p, stage, export), owned=PLAN_FILES)
 
 
@@ -826,6 +829,7 @@ def _write_plan_files(p: Plan, out: Path, export: tuple[str, ...] = ()) -> list[
         "joints": p.margins(),
         "settings": {**p.settings, "start": p.problem.start.tolist(), "goal": p.problem.goal.tolist(),
                      "arm_distance": p.problem.arm_distance,
+                     **({} if p.problem.supports is None else {"supports": p.problem.offsets.tolist()}),
                      "interval_bounds": list(p.problem.interval_bounds), "n_control": p.problem.n_control,
                      "limits": {q.name: p.problem.limits[:, k].tolist() for k, q in enumerate(p.problem.kinds)},
                      "home": p.problem.home.tolist()},

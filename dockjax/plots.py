@@ -94,9 +94,10 @@ def plot_left_arm(samples: dict[str, dict[str, np.ndarray]], path) -> Path:
 
 
 def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, title="", home=None) -> Path:
-    """The eight joints' travel about home, velocity, acceleration (and, with a jerk column,
+    """The joints' travel about home, velocity, acceleration (and, with a jerk column,
     jerk) as fractions of their limits (one panel per kind of limit, limits ±1 dashed).
-    sample: {"t", "position", "velocity", "acceleration", "jerk"} (m, 8); limits (8, kinds)
+    sample: {"t", "position", "velocity", "acceleration", "jerk"} (m, 8) (or 4 per support,
+    :func:`dockjax.robot.support_joints`); limits (8, kinds)
     (columns as :data:`dockjax.robot.LIMIT_KINDS`), or (m, 8, kinds) per sample (a staged
     move's stages); home (8,) (default: the midpoint of the first and last positions)."""
     limits = np.asarray(limits)
@@ -109,9 +110,10 @@ def plot_joints(sample: dict[str, np.ndarray], limits: np.ndarray, path, *, titl
     series = [robot.sampled_quantity(sample, k, home) / limits[..., i] for i, k in enumerate(kinds)]
     names = [("travel about home" if k.order == 0 else k.name) + " / limit" for k in kinds]
     t = sample["t"][pick]
+    joints = robot.support_joints(pos.shape[1] // 4)
     for ax, y, name in zip(axes, series, names):
-        for j in range(8):
-            ax.plot(t, y[pick, j], lw=1.2, ls="-" if j < 4 else "--", label=config.JOINT_NAMES[j])
+        for j, joint in enumerate(joints):
+            ax.plot(t, y[pick, j], lw=1.2, ls=("-", "--", ":", "-.")[j // 4 % 4], label=joint.name)
         for sgn in (-1, 1):
             ax.axhline(sgn, color="C3", ls=":", lw=1)
         ax.set_ylabel(name, fontsize=9)

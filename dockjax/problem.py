@@ -31,7 +31,7 @@ from . import devices as dev
 from .decoding import decode, span_angles, spans
 from .kinematics import inverse_kinematics
 from .limits import BOUND_TOLERANCE, SCREEN_BAND, columns, maxima, maxima_screened
-from .objectives import jerk, jerk_nodes_for
+from .objectives import cabin_jerk, jerk, jerk_nodes_for
 from .pytrees import pytree_dataclass, static
 from .right_arm import bound_overstatement, right_taylor_maxima
 from .store import stored_jit
@@ -52,9 +52,28 @@ def _control_box(start: np.ndarray, goal: np.ndarray, margin: float) -> np.ndarr
     return np.stack([np.minimum(start, goal) - m, np.maximum(start, goal) + m])
 
 
-def _per_joint(name: str, value) -> np.ndarray:
-    arr = checks.vector(name, value, (4, 8), positive=True)
-    return np.tile(arr, 2) if arr.shape[0] == 4 else arr
+def _per_joint(name: str, value, n_joints: int = config.N_JOINTS) -> np.ndarray:
+    arr = checks.vector(name, value, sorted({4, n_joints}), positive=True)
+    return np.tile(arr, n_joints // 4) if arr.shape[0] == 4 else arr
+
+
+def _supports(value, arm_distance: float):
+    """``(offsets or None, arm distance)`` of the ``supports`` argument (see
+    :class:`DockingProblem`): None for the paper's two arms, whose distance is then the
+    second offset."""
+    if value is None:
+        return None, arm_distance
+    offs = checks.real_array("supports", value)
+    if offs.ndim != 1 or not 2 <= offs.shape[0] <= robot.MAX_SUPPORTS or not np.all(np.isfinite(offs)):
+        raise ValueError(f"supports must be 2 to {robot.MAX_SUPPORTS} finite offsets (mm), "
+                         f"got {np.asarray(value).tolist()!r}")
+    if offs[0] != 0 or np.any(np.diff(offs) <= 0):
+        raise ValueError(f"supports must start at 0 (the first support, the pose's reference point) and increase, "
+                         f"got {offs.tolist()!r}")
+    if arm_distance != config.ARM_DISTANCE and arm_distance != offs[-1]:
+        raise ValueError(f"arm_distance {arm_distance:g} and supports {offs.tolist()!r} disagree: give one "
+                         "(with supports, arm_distance is the last offset)")
+    return (None if len(offs) == 2 else offs), float(offs[-1])
 
 
 BOUNDARY_FIELDS = ("start_velocity", "start_acceleration", "goal_velocity", "goal_acceleration")
@@ -75,14 +94,23 @@ class DockingProblem:
       (:func:`dockjax.bspline.control_points`), the others default to zero, and
       :attr:`boundary` holds the four; all zero is the same as None.
     * ``arm_distance``: ``D_2``, distance between the arm ends (mm).
+    * ``supports``: the offsets (mm) along the cabin axis of K ≥ 2 supports (at most
+      :data:`dockjax.robot.MAX_SUPPORTS`), the first 0 and increasing (conventions §4);
+      default None: the paper's two arms at 0 and ``arm_distance``. Each support has the
+      four joints of the paper's arms (:func:`dockjax.robot.support_joints`): the limits
+      then take 4 numbers (every support) or 4K, ``home`` 4K, and G has 4K joints'
+      columns. Two supports are the same problem as ``arm_distance`` = the second offset;
+      with more, ``arm_distance`` is the last offset, every limit column is exact (no
+      screening) and ``right_arm`` is ``"bound"`` or ``"taylor"`` (``"auto"`` chooses
+      between them as below, with ``"taylor"`` in the place of ``"adaptive"``).
     * ``interval_bounds``: ``(lo, hi)`` of each knot interval ``h_k`` (s), ``0 < lo < hi``.
     * ``travel``, ``velocity``, ``acceleration``: limits of Table 2, 4 numbers in the arm
       joint order (axial, lift, lateral, roll), applied to both arms, or 8 numbers in the
-      joint order ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]``.
+      joint order ``[d_L1, d_L2, d_L3, θ_L, d_R1, d_R2, d_R3, θ_R]`` (4K with ``supports``).
     * ``jerk``: optional |jerk| limits (mm/s³, °/s³), 4 or 8 numbers like ``velocity``;
       default None: no jerk limits (the paper's 24 columns). With them, G has 32 columns:
       each joint's travel, velocity, acceleration and jerk (:attr:`column_names`).
-    * ``home``: (8,) joint home positions for the travel limits; default the midpoint of
+    * ``home``: (8,) (4K with ``supports``) joint home positions for the travel limits; default the midpoint of
       each joint's start and goal values.
     * ``margin``: relative margin of the control-point box (conventions §3).
     * ``n_control``: the number n of free control points (1 to 64; default 5, the paper's
@@ -120,8 +148,10 @@ class DockingProblem:
 
     Attributes: ``n_var``, ``n_intervals`` (n + 1), ``n_obj`` (2), ``kinds`` (the limit kinds,
     :data:`dockjax.robot.LIMIT_KINDS`), ``n_con`` (8 per kind: 24, or 32 with jerk limits),
-    ``column_names``, ``lower``, ``upper`` (natural units, conventions §3 order), ``limits``
-    (8, kinds), ``robot`` (what the kernel takes: D_2, home and the limit table,
+    ``column_names``, ``n_supports``, ``offsets``, ``joints``, ``joint_names``, ``n_joints``
+    (8, or 4K), ``robots`` (one :class:`dockjax.robot.Robot` per pair of supports), ``lower``,
+    ``upper`` (natural units, conventions §3 order), ``limits`` (n_joints, kinds),
+    ``robot`` (what the kernel takes: D_2, home and the limit table,
     :class:`dockjax.robot.Robot`), and the arguments in resolved form: ``start``, ``goal`` (6,), ``arm_distance``,
     ``interval_bounds`` (a pair of floats), ``travel``, ``velocity``, ``acceleration``,
     ``jerk`` ((8,) or None), ``home`` (8,), ``margin``, ``reduced``, ``right_arm``
@@ -141,6 +171,7 @@ class DockingProblem:
     goal_velocity: Any = None
     goal_acceleration: Any = None
     arm_distance: Any = config.ARM_DISTANCE
+    supports: Any = None
     interval_bounds: Any = config.INTERVAL_BOUNDS
     travel: Any = config.TRAVEL
     velocity: Any = config.VELOCITY
@@ -165,6 +196,9 @@ class DockingProblem:
         start_a = checks.vector("start", self.start, (6,))
         goal_a = checks.vector("goal", self.goal, (6,))
         d2 = checks.vector("arm_distance", [self.arm_distance], (1,), positive=True)[0]
+        offsets, d2 = _supports(self.supports, d2)
+        set_("supports", offsets)
+        n_joints = self.n_joints
         bounds = checks.vector("interval_bounds", self.interval_bounds, (2,))
         lo, hi = bounds
         if lo <= 0 or lo >= hi:
@@ -179,18 +213,18 @@ class DockingProblem:
         if mg < 0:
             raise ValueError(f"margin must be >= 0, got {mg}")
         names = ("travel", "velocity", "acceleration")
-        travel, velocity, acceleration = (_per_joint(k, getattr(self, k)) for k in names)
-        jerk_a = None if self.jerk is None else _per_joint("jerk", self.jerk)
+        travel, velocity, acceleration = (_per_joint(k, getattr(self, k), n_joints) for k in names)
+        jerk_a = None if self.jerk is None else _per_joint("jerk", self.jerk, n_joints)
         limits = np.stack([travel, velocity, acceleration], axis=1)
         with jax.enable_x64(True):
-            q0 = np.asarray(inverse_kinematics(start_a, d2))
-            q1 = np.asarray(inverse_kinematics(goal_a, d2))
-        home_a = 0.5 * (q0 + q1) if self.home is None else checks.vector("home", self.home, (8,))
-        for j, name in enumerate(config.JOINT_NAMES):
+            q0, q1 = (np.asarray(inverse_kinematics(p, d2 if offsets is None else offsets)) for p in (start_a, goal_a))
+        home_a = 0.5 * (q0 + q1) if self.home is None else checks.vector("home", self.home, (n_joints,))
+        for j, joint in enumerate(self.joints):
+            name = joint.name
             move = abs(q1[j] - q0[j])
             if move > 2 * limits[j, 0]:
                 raise ValueError(
-                    f"start-to-goal move of joint {name} is {move:.6g} {config.JOINT_UNITS[j]}, "
+                    f"start-to-goal move of joint {name} is {move:.6g} {joint.unit}, "
                     f"longer than its stroke 2 x travel = {2 * limits[j, 0]:.6g}"
                 )
             for label, q in (("start", q0[j]), ("goal", q1[j])):
@@ -223,9 +257,11 @@ class DockingProblem:
             right_arm = "taylor"
         if right_arm not in RIGHT_ARM_MODES:
             raise ValueError(f"right_arm must be one of {', '.join(map(repr, RIGHT_ARM_MODES))}, got {right_arm!r}")
+        if right_arm == "adaptive" and offsets is not None:
+            raise ValueError("right_arm='adaptive' is for two supports; with more give 'bound', 'taylor' or 'auto'")
         set_("_auto_bound", right_arm == "auto" and bound_overstatement(self) <= BOUND_TOLERANCE)
         if right_arm == "auto":
-            right_arm = "bound" if self._auto_bound else "adaptive"
+            right_arm = "bound" if self._auto_bound else self.fallback
         set_("right_arm", right_arm)
         jerk_nodes = self.jerk_nodes
         if jerk_nodes is None:
@@ -254,8 +290,64 @@ class DockingProblem:
     @property
     def robot(self) -> robot.Robot:
         """The robot's numbers as the kernel takes them (:class:`dockjax.robot.Robot`): D_2,
-        :attr:`home` and the limit table :attr:`limits` (traceable: built from the leaves)."""
+        :attr:`home` and the limit table :attr:`limits` (traceable: built from the leaves).
+        Two supports only (ValueError with more: see :attr:`robots`)."""
+        if self.supports is not None:
+            raise ValueError(f"this cabin has {self.n_supports} supports: its kernel takes one robot per pair "
+                             "of supports (DockingProblem.robots); this operation is for two supports")
         return robot.Robot(arm_distance=self.arm_distance, home=self.home, limits=self.limits)
+
+    def joint_values(self, x, y, z, roll, axis_x, axis_y, axis_z) -> tuple:
+        """The pose → joints map of this cabin (:attr:`n_joints` values, power series or
+        Taylor coefficients alike): :meth:`dockjax.robot.Robot.joints` for two supports,
+        :func:`dockjax.robot.cabin_joints` at :attr:`offsets` for more."""
+        if self.supports is None:
+            return self.robot.joints(x, y, z, roll, axis_x, axis_y, axis_z)
+        return robot.cabin_joints(x, y, z, roll, axis_x, axis_y, axis_z, self.supports)
+
+    @property
+    def robots(self) -> tuple:
+        """One :class:`dockjax.robot.Robot` per pair (the first support, support s), s = 2..K
+        (:func:`dockjax.robot.pair_rows`): the pair's offset as D_2, its home and limit rows;
+        ``(robot,)`` for two supports (traceable)."""
+        if self.supports is None:
+            return (self.robot,)
+        take = jnp.take if isinstance(self.home, jax.Array) else np.take
+        lim = self.limits
+        return tuple(robot.Robot(arm_distance=self.supports[s + 1], home=take(self.home, rows, axis=0),
+                                 limits=take(lim, rows, axis=0))
+                     for s, rows in enumerate(robot.pair_rows(self.n_supports)))
+
+    @property
+    def n_supports(self) -> int:
+        """K, the supports carrying the cabin (2: the paper's arms; static)."""
+        return 2 if self.supports is None else int(np.shape(self.supports)[-1])
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """The supports' offsets (K,) along the cabin axis (mm): ``(0, arm_distance)`` for two."""
+        return np.array([0.0, self.arm_distance]) if self.supports is None else np.asarray(self.supports)
+
+    @property
+    def joints(self) -> tuple:
+        """The joints (:func:`dockjax.robot.support_joints`): 8, or 4 per support."""
+        return robot.support_joints(self.n_supports)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of :attr:`joints`, in the order of G's joints, the samples and the CSV."""
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def n_joints(self) -> int:
+        """Joints: 4 per support (8 for the paper's two arms)."""
+        return 4 * self.n_supports
+
+    @property
+    def fallback(self) -> str:
+        """The right-arm treatment ``"auto"`` turns to where the bound may overstate:
+        ``"adaptive"``, or ``"taylor"`` with more than two supports."""
+        return "adaptive" if self.supports is None else "taylor"
 
     @property
     def boundary(self) -> tuple | None:
@@ -278,14 +370,15 @@ class DockingProblem:
 
     @property
     def n_con(self) -> int:
-        """Limit columns of G: 8 joints × :attr:`n_kinds` (24, or 32 with jerk limits)."""
-        return config.N_JOINTS * self.n_kinds
+        """Limit columns of G: :attr:`n_joints` × :attr:`n_kinds` (24, or 32 with jerk limits,
+        for the paper's two arms)."""
+        return self.n_joints * self.n_kinds
 
     @property
     def column_names(self) -> list[str]:
         """What each column of G bounds, joint-major: ``"d_L1 travel"``, ``"d_L1 velocity"``,
         ..., ``"theta_R acceleration"`` (and each joint's ``"jerk"`` with jerk limits)."""
-        return robot.column_names(self.n_kinds)
+        return robot.column_names(self.n_kinds, self.joints)
 
     def pose_box(self) -> np.ndarray:
         """The control points' box (:func:`_control_box`), also in the reduced setting, so
@@ -299,7 +392,7 @@ class DockingProblem:
             if not f.init or f.name == "box":
                 continue
             if ((f.name == "n_control" and self.n_control == config.N_FREE)
-                    or (f.name in ("jerk", *BOUNDARY_FIELDS) and getattr(self, f.name) is None)):
+                    or (f.name in ("jerk", "supports", *BOUNDARY_FIELDS) and getattr(self, f.name) is None)):
                 continue  # left out at their defaults: the identities and the caches keyed on them stay as they were
             v = getattr(self, f.name)
             out[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple, list)) else v
@@ -338,7 +431,9 @@ class DockingProblem:
                     f"{f'n_control={self.n_control}, ' if self.n_control != config.N_FREE else ''}n_var={self.n_var})")
         return (
             f"DockingProblem(start={f(self.start)}, goal={f(self.goal)}, "
-            f"arm_distance={self.arm_distance:g}, interval_bounds={self.interval_bounds}, "
+            f"arm_distance={self.arm_distance:g}, "
+            f"{f'supports={f(self.supports)}, ' if self.supports is not None else ''}"
+            f"interval_bounds={self.interval_bounds}, "
             f"{f'n_control={self.n_control}, ' if self.n_control != config.N_FREE else ''}"
             f"{f'jerk={f(self.jerk)}, ' if self.jerk is not None else ''}"
             f"n_var={self.n_var}{', reduced' if self.reduced else ''})"
@@ -410,7 +505,7 @@ class DockingProblem:
             # these rows (outside the box) are where it may not: the adaptive treatment
             # re-scores them (compiled only when first needed)
             G = np.array(G)
-            _, G[rows] = self.with_right_arm("adaptive").evaluate(arr[rows], precision=precision, screen=screen,
+            _, G[rows] = self.with_right_arm(self.fallback).evaluate(arr[rows], precision=precision, screen=screen,
                                                                    devices=devices)
         bad = ~(np.all(np.isfinite(F), 1) & np.all(np.isfinite(G), 1))
         if bad.any():
@@ -442,6 +537,8 @@ def _score(problem: DockingProblem, x, screen: bool = False):
     """F (2,), G (24,), the adaptive mode's ``need`` flag and the screen's ``over`` flag of
     one candidate (``screen``: :func:`dockjax.limits.maxima_screened` instead of :func:`dockjax.limits.maxima`)."""
     h, _, c, ref = spans(problem, x)
+    if problem.supports is not None:
+        return _score_supports(problem, h, c, ref)
     rb = problem.robot
     F = jnp.stack([jnp.sum(h), jerk(rb, c, h, ref, nodes=problem.jerk_nodes)])
     if screen and problem.right_arm != "taylor":
@@ -450,6 +547,19 @@ def _score(problem: DockingProblem, x, screen: bool = False):
         M, need = maxima(rb, c, h, ref, taylor=problem.right_arm == "taylor", with_need=True, screen=screen)
         over, series = jnp.zeros((), bool), None
     return F, columns(rb, M), need, over, series
+
+
+def _score_supports(problem: DockingProblem, h, c, ref):
+    """:func:`_score` of a cabin on more than two supports: the maxima of each pair of
+    supports (:attr:`DockingProblem.robots`, every span through the root chain, the
+    problem's right-arm treatment) joined into the cabin's joints; the jerk objective over
+    all of them (:func:`dockjax.objectives.cabin_jerk`)."""
+    taylor = problem.right_arm == "taylor"
+    parts = [maxima(rb, c, h, ref, taylor=taylor, with_need=True) for rb in problem.robots]
+    M = robot.join_pairs([m for m, _ in parts])
+    need = jnp.any(jnp.stack([n for _, n in parts]))
+    F = jnp.stack([jnp.sum(h), cabin_jerk(problem.robots, c, h, ref, nodes=problem.jerk_nodes)])
+    return F, columns(None, M, problem.limits), need, jnp.zeros((), bool), None
 
 
 def score(problem: DockingProblem, x):
@@ -590,8 +700,11 @@ def score_batch(problem: DockingProblem, X, screen: bool = True, chunk: int | No
     chunk = KERNEL_CHUNK if chunk is None else chunk
     checks.integer("chunk", chunk, 1)
     adaptive = problem.right_arm == "adaptive"
-    taylor = problem.right_arm == "taylor"
-    bound = problem.with_right_arm("bound")
+    if problem.supports is None:
+        taylor = problem.right_arm == "taylor"
+        bound = problem.with_right_arm("bound")
+    else:  # more than two supports: _score_supports applies the treatment, every span exact
+        taylor, bound, screen = False, problem, False
     n = X.shape[0]
     passes = max(1, -(-n // chunk))
     size = -(-n // passes)

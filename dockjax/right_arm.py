@@ -131,15 +131,18 @@ def bound_overstatement(problem: "DockingProblem") -> float:
     rng = _DEG * (box[1, POSE_ATTITUDE] - box[0, POSE_ATTITUDE])
     far = np.minimum(1.0, _DEG * np.max(np.abs(box[:, POSE_ATTITUDE]), axis=0))
     h_lo = problem.interval_bounds[0]
+    worst = 0.0
     with jax.enable_x64(True):
         hess = np.asarray(hessian_norms(far[0], far[1]))
-        b = np.asarray(
-            remainder_bound(
-                problem.arm_distance, hess, np.hypot(*rng), 5 * np.hypot(*rng) / h_lo,
-                40 * np.hypot(*rng) / h_lo**2, None if problem.jerk is None else 240 * np.hypot(*rng) / h_lo**3,
+        for rb in problem.robots:  # one pair of supports at a time (two arms: the robot)
+            b = np.asarray(
+                remainder_bound(
+                    rb.arm_distance, hess, np.hypot(*rng), 5 * np.hypot(*rng) / h_lo,
+                    40 * np.hypot(*rng) / h_lo**2, None if problem.jerk is None else 240 * np.hypot(*rng) / h_lo**3,
+                )
             )
-        )
-    return float(np.max(2 * b / problem.limits[ATTITUDE_JOINTS]))
+            worst = max(worst, float(np.max(2 * b / np.asarray(rb.limits)[ATTITUDE_JOINTS])))
+    return worst
 
 
 TAYLOR_TIGHT = 1e-8

@@ -11,6 +11,13 @@
   uses (:attr:`dockjax.DockingProblem.kinds`), joint-major in G.
 * :class:`Robot`: one robot's numbers as the kernel takes them (a pytree: the arm distance,
   the home position and the limit table), :attr:`dockjax.DockingProblem.robot`.
+* **Supports** (conventions §4): a cabin carried by K ≥ 2 supports at offsets
+  ``0 = o_1 < o_2 < … < o_K`` along its axis, each with the four joints of the paper's arms
+  (:func:`support_joints`, :func:`cabin_joints`). The first support is the left arm; every
+  other one has the right arm's joint map with its own offset. The kernel sees such a cabin
+  as K − 1 *pairs* (the first support with each other one), each a two-arm :class:`Robot`
+  (:func:`pair_rows`); :func:`join_pairs` puts the pairs' per-joint results back in the
+  cabin's joint order.
 """
 
 from __future__ import annotations
@@ -26,7 +33,8 @@ from .pytrees import pytree_dataclass
 
 __all__ = ["Joint", "LimitKind", "Robot", "JOINTS", "ATTITUDE_JOINTS", "LEFT_ARM", "RIGHT_ARM", "LIMIT_KINDS",
            "BASE_KINDS", "DERIVATIVES", "POSE_ATTITUDE", "kinds_of", "column_names", "sampled_quantity", "by_kind",
-           "cabin_axis", "cabin_axis_jets", "arm_joints", "LIMIT_KEYS", "check_limit_table"]
+           "cabin_axis", "cabin_axis_jets", "arm_joints", "LIMIT_KEYS", "check_limit_table", "MAX_SUPPORTS",
+           "support_names", "support_joints", "pair_rows", "join_pairs", "cabin_joints"]
 
 
 @dataclass(frozen=True)
@@ -109,10 +117,10 @@ def kinds_of(n_kinds: int) -> tuple[LimitKind, ...]:
     return LIMIT_KINDS[:n_kinds]
 
 
-def column_names(n_kinds: int) -> list[str]:
-    """Names of the ``8 · n_kinds`` columns of G, joint-major: ``"d_L1 travel"``,
+def column_names(n_kinds: int, joints: tuple = JOINTS) -> list[str]:
+    """Names of the ``len(joints) · n_kinds`` columns of G, joint-major: ``"d_L1 travel"``,
     ``"d_L1 velocity"``, ..."""
-    return [f"{j.name} {k.name}" for j in JOINTS for k in kinds_of(n_kinds)]
+    return [f"{j.name} {k.name}" for j in joints for k in kinds_of(n_kinds)]
 
 
 def sampled_quantity(sample: dict, kind: LimitKind, home) -> np.ndarray:
@@ -124,11 +132,53 @@ def sampled_quantity(sample: dict, kind: LimitKind, home) -> np.ndarray:
     return np.asarray(sample[DERIVATIVES[kind.order]])
 
 
-def by_kind(G) -> np.ndarray:
-    """G (..., 8 · kinds) as a float64 array (..., 8 joints, kinds) (joint-major,
-    :func:`column_names`)."""
+def by_kind(G, n_joints: int = len(JOINTS)) -> np.ndarray:
+    """G (..., n_joints · kinds) as a float64 array (..., n_joints, kinds) (joint-major,
+    :func:`column_names`; 8 joints: the paper's two arms)."""
     G = np.asarray(G, np.float64)
-    return G.reshape(G.shape[:-1] + (len(JOINTS), G.shape[-1] // len(JOINTS)))
+    return G.reshape(G.shape[:-1] + (n_joints, G.shape[-1] // n_joints))
+
+
+MAX_SUPPORTS = 16
+"""Most supports a cabin takes (:func:`support_joints`)."""
+
+_ARM = (("d_{}1", "mm"), ("d_{}2", "mm"), ("d_{}3", "mm"), ("theta_{}", "deg"))
+
+
+def support_names(k: int) -> tuple[str, ...]:
+    """Names of k supports: ``("L", "R")`` for two (the paper's arms), else ``"L"``, ``"M1"``,
+    …, ``"M{k−2}"``, ``"R"`` (left end, middle ones in order, right end)."""
+    return ("L", *(f"M{i}" for i in range(1, k - 1)), "R")
+
+
+def support_joints(k: int) -> tuple[Joint, ...]:
+    """The 4k joints of a cabin on k supports, support by support, each in the arm order
+    (axial, lift, lateral, roll): for two supports :data:`JOINTS`; a middle support ``M1``
+    has ``d_M1_1``, ``d_M1_2``, ``d_M1_3``, ``theta_M1``. Every support but the first has
+    attitude-dependent axial, lift and lateral joints."""
+    if k == 2:
+        return JOINTS
+    return tuple(Joint(name.format(s + "_" * (len(s) > 1 and j < 3)), unit, i > 0 and j < 3)
+                 for i, s in enumerate(support_names(k)) for j, (name, unit) in enumerate(_ARM))
+
+
+def pair_rows(k: int) -> list[np.ndarray]:
+    """For each support s = 2..k, the rows (8,) of the pair (the first support, support s)
+    in the 4k joints of :func:`support_joints`: the pair's left arm is the first support,
+    its right arm support s."""
+    return [np.r_[LEFT_ARM.start:LEFT_ARM.stop, 4 * s:4 * s + 4] for s in range(1, k)]
+
+
+def join_pairs(parts, axis: int = 0):
+    """The k − 1 pairs' per-joint arrays (8 joints on ``axis``, :func:`pair_rows`) as one
+    array of the cabin's 4k joints: the first support's from the first pair, each other
+    support's from its own pair. One pair is returned as it is. NumPy in, NumPy out."""
+    if len(parts) == 1:
+        return parts[0]
+    xp = np if all(isinstance(p, np.ndarray) for p in parts) else jnp
+    left, right = np.arange(LEFT_ARM.start, LEFT_ARM.stop), np.arange(RIGHT_ARM.start, RIGHT_ARM.stop)
+    return xp.concatenate([xp.take(parts[0], left, axis=axis)] + [xp.take(p, right, axis=axis) for p in parts],
+                          axis=axis)
 
 
 
@@ -172,6 +222,17 @@ def arm_joints(x, y, z, roll, axis_x, axis_y, axis_z, arm_distance) -> tuple:
     """
     d2 = arm_distance
     return (-z, y, -x, roll, z + d2 * axis_z, y + d2 * axis_y, -(x + d2 * axis_x), -roll)
+
+
+def cabin_joints(x, y, z, roll, axis_x, axis_y, axis_z, offsets) -> tuple:
+    """The 4k joints of a cabin on k supports at ``offsets`` (k,) along its axis (mm, the
+    first 0): the first support's joints as the left arm's, each other support's as the
+    right arm's of :func:`arm_joints` with ``D_2`` its offset (its end ``K_L + o u``).
+    With offsets ``(0, D_2)`` it is :func:`arm_joints`."""
+    out = list(arm_joints(x, y, z, roll, axis_x, axis_y, axis_z, offsets[1]))
+    for o in offsets[2:]:
+        out += arm_joints(x, y, z, roll, axis_x, axis_y, axis_z, o)[RIGHT_ARM]
+    return tuple(out)
 
 
 @pytree_dataclass

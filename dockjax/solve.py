@@ -44,7 +44,7 @@ from .decoding import spans
 from .fusion import materialize
 from .kinematics import inverse_kinematics
 from .limits import joint_series
-from .objectives import jerk
+from .objectives import cabin_jerk
 from .problem import DockingProblem
 from .right_arm import linearisation_remainders
 from .robot import ATTITUDE_JOINTS, by_kind
@@ -103,7 +103,7 @@ def critical_times(problem: DockingProblem, x):
     :func:`dockjax.extrema.chain_extrema` (and, with jerk limits, the jerk's 3 of
     :func:`dockjax.extrema.jerk_times`), each with a flag that it is the span's end."""
     h, _, c, ref = spans(problem, x)
-    polys = jax.lax.stop_gradient(joint_series(problem.robot, c, h, ref))
+    polys = jax.lax.stop_gradient(robot.join_pairs([joint_series(rb, c, h, ref) for rb in problem.robots], axis=1))
     hh = jax.lax.stop_gradient(jnp.broadcast_to(h[:, None], polys.shape[:2]))
     (tt, _), (vt, _), at = extrema.chain_extrema(polys, hh)
     times = (tt, vt, at) if problem.jerk is None else (tt, vt, at, extrema.jerk_times(poly_derivative(polys, 3), hh))
@@ -111,8 +111,9 @@ def critical_times(problem: DockingProblem, x):
 
 
 def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
-    """The limit constraints at every critical time, x (n_var,) → (s spans, 8 joints,
-    :func:`critical_values`).
+    """The limit constraints at every critical time, x (n_var,) → (s spans, n_joints,
+    :func:`critical_values`) (8 joints for the paper's two arms; a cabin on more supports:
+    per pair of supports, :attr:`dockjax.DockingProblem.robots`, joined).
 
     Per span and joint: the travel at the span's ends and the roots of the velocity (6
     values), the velocity at the ends and the roots of the acceleration (5), the
@@ -127,13 +128,25 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
     L = problem.limits if limits is None else limits
     times = critical_times(problem, x) if times is None else times
     h, _, c, ref = spans(problem, x)
-    polys = materialize(joint_series(problem.robot, c, h, ref))  # (s, 8, 6)
+    if problem.supports is None:
+        return _pair_limits(problem.robot, c, h, ref, L, times)
+    parts = []
+    for rb, rows in zip(problem.robots, robot.pair_rows(problem.n_supports)):
+        pick = lambda a: jnp.take(a, rows, axis=1)  # noqa: E731  the pair's joints
+        parts.append(_pair_limits(rb, c, h, ref, jnp.take(L, rows, axis=0),
+                                  tuple((pick(t), pick(end)) for t, end in times)))
+    return robot.join_pairs(parts, axis=1)
+
+
+def _pair_limits(rb: robot.Robot, c, h, ref, L, times):
+    """:func:`candidate_limits` of one two-arm robot: (s spans, 8 joints, critical values)."""
+    polys = materialize(joint_series(rb, c, h, ref))  # (s, 8, 6)
     hh = jnp.broadcast_to(h[:, None], polys.shape[:2])
     vals = [poly_eval(poly_derivative(polys, k)[..., None, :] if k else polys[..., None, :],
                       jnp.where(end, hh[..., None], jax.lax.stop_gradient(t)))
             for k, (t, end) in enumerate(times)]
-    rem = linearisation_remainders(problem.robot, c, h, ref)  # (s, 3, kinds)
-    extra = jnp.zeros(polys.shape[:2] + (problem.n_kinds,), polys.dtype).at[:, ATTITUDE_JOINTS].set(rem)
+    rem = linearisation_remainders(rb, c, h, ref)  # (s, 3, kinds)
+    extra = jnp.zeros(polys.shape[:2] + (rb.n_kinds,), polys.dtype).at[:, ATTITUDE_JOINTS].set(rem)
     out = []
     for k, v in enumerate(vals):
         room = 1.0 - extra[..., k, None] / L[:, k, None]
@@ -145,7 +158,7 @@ def candidate_limits(problem: DockingProblem, x, limits=None, times=None):
 
 def _jerk(problem, x):
     h, _, c, ref = spans(problem, x)
-    return jerk(problem.robot, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)
+    return cabin_jerk(problem.robots, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)
 
 
 _jerk_value = stored_jit(_jerk)
@@ -209,23 +222,23 @@ def time_scale(problem: DockingProblem, x, s: float) -> np.ndarray:
     return x
 
 
-def scaling_needs(G):
+def scaling_needs(G, n_joints: int = config.N_JOINTS):
     """Per limit column, the exact time scaling ``s`` that brings it down to its limit:
-    G (..., 8 · kinds) → (..., 8, kinds). A kind of time-scaling power p
+    G (..., n_joints · kinds) → (..., n_joints, kinds) (8 joints: the paper's two arms). A kind of time-scaling power p
     (:data:`dockjax.robot.LIMIT_KINDS`: velocity 1, acceleration 2, jerk 3) scales by ``1/s^p``,
     so ``s`` is the p-th root of ``G + 1`` (the maximum over the limit); travel does not
     scale (0). NumPy in, NumPy out (float64); a JAX array (also traced) in, JAX out."""
     xp = jnp if isinstance(G, jax.Array) else np
-    r = (G.reshape(G.shape[:-1] + (config.N_JOINTS, -1)) if xp is jnp else by_kind(G)) + 1.0
+    r = (G.reshape(G.shape[:-1] + (n_joints, -1)) if xp is jnp else by_kind(G, n_joints)) + 1.0
     root = {0: xp.zeros_like, 1: lambda v: v, 2: lambda v: xp.sqrt(xp.maximum(v, 0.0)), 3: xp.cbrt}
     return xp.stack([root[k.power](r[..., i]) for i, k in enumerate(robot.kinds_of(r.shape[-1]))], -1)
 
 
-def scaling_need(G):
-    """The least time scaling ``s ≥ 1`` after which no rate column of G (..., 8 · kinds)
-    exceeds its limit (:func:`scaling_needs`). → (...,)."""
+def scaling_need(G, n_joints: int = config.N_JOINTS):
+    """The least time scaling ``s ≥ 1`` after which no rate column of G (...,
+    n_joints · kinds) exceeds its limit (:func:`scaling_needs`). → (...,)."""
     xp = jnp if isinstance(G, jax.Array) else np
-    return xp.maximum(1.0, scaling_needs(G).max(axis=(-2, -1)))
+    return xp.maximum(1.0, scaling_needs(G, n_joints).max(axis=(-2, -1)))
 
 
 class PlanError(RuntimeError):
@@ -244,8 +257,9 @@ class PlanError(RuntimeError):
     def of_column(cls, problem: DockingProblem, j: int, k: int, message: str, excess: float | None = None):
         """The error for limit column (joint ``j``, quantity ``k``): ``message`` follows
         ``"<joint> <quantity> (<limit> <unit>)"``."""
-        limit, unit = float(np.asarray(problem.limits)[j, k]), config.unit(j, k)
-        joint, kind = robot.JOINTS[j].name, robot.LIMIT_KINDS[k].name
+        joint, kind = problem.joints[j], robot.LIMIT_KINDS[k]
+        limit, unit = float(np.asarray(problem.limits)[j, k]), joint.unit + kind.suffix
+        joint, kind = joint.name, kind.name
         return cls(message.replace("{limit}", f"{joint} {kind} ({limit:g} {unit})"), joint=joint, quantity=kind,
                    limit=limit, unit=unit, excess=excess)
 
@@ -261,7 +275,8 @@ def _joint_moves(problem: DockingProblem) -> np.ndarray:
     """(8,) |goal − start| of each joint (mm, °), in float64, less its rounding
     (:data:`MOVE_ROUNDING`; at least 0): never above the exact move."""
     with jax.enable_x64(True):
-        q0, q1 = (np.asarray(inverse_kinematics(np.asarray(p, np.float64), problem.arm_distance))
+        ends = problem.arm_distance if problem.supports is None else problem.offsets
+        q0, q1 = (np.asarray(inverse_kinematics(np.asarray(p, np.float64), ends))
                   for p in (problem.start, problem.goal))
     return moves_less_rounding(q0, q1)
 
@@ -315,7 +330,7 @@ def floor_infeasibility(problem: DockingProblem) -> PlanError | None:
         k, excess = kind.index("acceleration"), 4.0 * d / (T * T) / a - 1.0
     else:  # the least cruise velocity that covers d in T with full acceleration
         k, excess = kind.index("velocity"), (a * T - math.sqrt(a * a * T * T - 4.0 * a * d)) / 2.0 / v - 1.0
-    name, unit = robot.JOINTS[j].name, robot.JOINTS[j].unit
+    name, unit = problem.joints[j].name, problem.joints[j].unit
     return PlanError.of_column(
         problem, j, k, f"no trajectory meets the limit {{limit}}: {name} moves {d:.6g} {unit}, which takes at "
         f"least {floor[j]:.4g} s from rest to rest within {v:g} {unit}/s and {a:g} {unit}/s^2, beyond the longest "
@@ -329,7 +344,7 @@ def infeasibility(problem: DockingProblem) -> PlanError:
     failed."""
     x = straight_line(problem, [problem.n_intervals * problem.interval_bounds[1]])[0]
     F, G = problem.evaluate(x[None])
-    G3 = by_kind(G[0])
+    G3 = by_kind(G[0], problem.n_joints)
     if G3[:, 0].max() > 0:
         j = int(np.argmax(G3[:, 0]))
         return PlanError.of_column(problem, j, 0, "no trajectory meets the limit {limit}: the straight line "
@@ -338,7 +353,7 @@ def infeasibility(problem: DockingProblem) -> PlanError:
         return PlanError(f"the SQP found no certified trajectory, although the straight line at the longest "
                          f"T = {F[0, 0]:g} s meets every limit: the solver failed on this problem (try fewer "
                          f"control points or other interval bounds)")
-    need = scaling_needs(G[0])
+    need = scaling_needs(G[0], problem.n_joints)
     j, k = np.unravel_index(np.argmax(need), need.shape)
     return PlanError.of_column(
         problem, int(j), int(k), f"no trajectory meets the limit {{limit}}: even the straight line would need "
@@ -359,9 +374,9 @@ def certify_scaling(problem: DockingProblem, x, max_rounds: int = 8):
     for _ in range(max_rounds):
         if np.all(G <= 0):
             return x, F, G, s
-        if np.any(by_kind(G)[:, 0] > 0):
+        if np.any(by_kind(G, problem.n_joints)[:, 0] > 0):
             return None
-        step = float(scaling_need(G)) * (1.0 + 1e-9)
+        step = float(scaling_need(G, problem.n_joints)) * (1.0 + 1e-9)
         s *= step
         x = time_scale(problem, x, step)
         if np.any(x[: problem.n_intervals] > problem.upper[: problem.n_intervals]):
@@ -393,7 +408,7 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
     top = np.ones_like(width)
     top[:n] -= room
     u0 = np.clip((np.asarray(x0, np.float64) - lo) / width, 0.0, top)
-    n_candidates = n * config.N_JOINTS * critical_values(problem)
+    n_candidates = n * problem.n_joints * critical_values(problem)
     # values from one programme and the constraints' Jacobian from another: SLSQP's line
     # search asks for values alone, 1.5 to 9 times per iteration
     cache, jac_cache = {}, {}
@@ -463,7 +478,7 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
         else:
             mult[keep] = m[:n_kept]
     cap_mult = float(m[n_kept]) if cap is not None and m.size > n_kept else 0.0
-    return lo + np.clip(res.x, 0.0, top) * width, res, (mult.reshape(n, config.N_JOINTS, -1), cap_mult)
+    return lo + np.clip(res.x, 0.0, top) * width, res, (mult.reshape(n, problem.n_joints, -1), cap_mult)
 
 
 RESTART_GAIN = 1e-9
@@ -569,7 +584,7 @@ def _multipliers_at(problem, x, scale):
         return None
     mult = np.zeros(gv.size)
     mult[active] = lam[: int(active.sum())]
-    return mult.reshape(problem.n_intervals, config.N_JOINTS, -1)
+    return mult.reshape(problem.n_intervals, problem.n_joints, -1)
 
 
 def min_time(problem: DockingProblem, x0, *, tol: float = 1e-12, max_iter: int = 200,
@@ -605,7 +620,7 @@ def kept_start(problem: DockingProblem, certified, *, multipliers=None, cap_mult
     :func:`critical_values`) NaN, so its sensitivities unknown, unless given (not None)."""
     x, F, G, s = certified
     if multipliers is None:
-        multipliers = np.full((problem.n_intervals, config.N_JOINTS, critical_values(problem)), np.nan)
+        multipliers = np.full((problem.n_intervals, problem.n_joints, critical_values(problem)), np.nan)
     return Solution(x=np.asarray(x, np.float64), F=np.asarray(F), G=np.asarray(G), x_solver=np.asarray(x, np.float64),
                     multipliers=multipliers, cap_multiplier=cap_multiplier, objective_scale=objective_scale,
                     scaled=float(s), iterations=iterations, success=False, message=message)

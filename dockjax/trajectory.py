@@ -64,14 +64,14 @@ def bucket_durations(t_lo: float, t_hi: float, rate: float) -> list[float]:
 
 @stored_jit
 def _jets_at(problem: "DockingProblem", x, t):
-    """Pose jets (m, 6, 4) and joint jets (m, 8, 4) at times t (m,), orders 0..3."""
+    """Pose jets (m, 6, 4) and joint jets (m, n_joints, 4) at times t (m,), orders 0..3."""
     h, u, c = decode(problem, x)
     k = jnp.searchsorted(bspline.interior_knots(u), t, side="right")
     tau = t - u[bspline.DEGREE + k]
     pose = bspline.poly_taylor(jnp.swapaxes(c[k], 1, 2), tau[:, None], 3)  # (m, 6, 4)
     px, py, pz, pa, pb, pg = (pose[:, i] for i in range(6))  # stacked jets (m, 4)
     axis = (jets.stack(u) for u in robot.cabin_axis_jets(jets.terms(_DEG * pa), jets.terms(_DEG * pb)))
-    joints = jnp.stack(problem.robot.joints(px, py, pz, pg, *axis), axis=1)
+    joints = jnp.stack(problem.joint_values(px, py, pz, pg, *axis), axis=1)
     return jets.derivatives(pose), jets.derivatives(joints)
 
 
@@ -134,7 +134,8 @@ class Trajectory:
         return self._eval(t, derivative)[0]
 
     def joints(self, t, derivative: int = 0) -> np.ndarray:
-        """The eight joints (conventions §4 order) or a time derivative (0..3) at t: (m, 8)."""
+        """The joints (conventions §4 order; 8, or 4 per support) or a time derivative (0..3)
+        at t: (m, n_joints)."""
         return self._eval(t, derivative)[1]
 
     def sample_times(self, rate: float) -> np.ndarray:
@@ -157,7 +158,7 @@ class Trajectory:
 
     def csv_header(self) -> list[str]:
         """The columns of :meth:`to_csv` (:func:`csv_header`)."""
-        return csv_header()
+        return csv_header(self.problem.n_joints)
 
     def to_csv(self, path: str | os.PathLike, rate: float) -> Path:
         """Write time, pose and each joint's position, velocity, acceleration and jerk,
@@ -167,11 +168,12 @@ class Trajectory:
         return path
 
 
-def csv_header() -> list[str]:
+def csv_header(n_joints: int = config.N_JOINTS) -> list[str]:
     """The columns of a trajectory CSV: time, the pose, and each joint's position,
-    velocity, acceleration and jerk, units in brackets."""
+    velocity, acceleration and jerk, units in brackets; ``n_joints``: 8 (the paper's arms)
+    or 4 per support (:func:`dockjax.robot.support_joints`)."""
     cols = ["t [s]"] + [f"{n} [{u}]" for n, u in zip(config.POSE_NAMES, config.POSE_UNITS)]
-    for name, unit in zip(config.JOINT_NAMES, config.JOINT_UNITS):
+    for name, unit in ((j.name, j.unit) for j in robot.support_joints(n_joints // 4)):
         cols += [f"{name}{s} [{unit}{p}]" for s, p in zip(COLUMN_SUFFIXES, config.RATE_SUFFIXES)]
     return cols
 
@@ -182,4 +184,4 @@ def csv_text(samples: dict) -> str:
     per_joint = np.stack([s[k] for k in robot.DERIVATIVES], -1)
     table = np.concatenate([s["t"][:, None], s["pose"], per_joint.reshape(len(s["t"]), -1)], 1)
     row = ",".join(["%.17g"] * table.shape[1])
-    return "\n".join([",".join(csv_header()), *(row % tuple(r) for r in table.tolist())]) + "\n"
+    return "\n".join([",".join(csv_header(per_joint.shape[1])), *(row % tuple(r) for r in table.tolist())]) + "\n"

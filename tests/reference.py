@@ -160,24 +160,32 @@ def _axis_derivatives(alpha_deg: np.ndarray, beta_deg: np.ndarray) -> np.ndarray
     return np.stack([ux, uy, uz], axis=-1)
 
 
-def _joints_from_pose_derivatives(pd: np.ndarray, arm_distance: float) -> np.ndarray:
-    """Joint values and derivatives (K, m, 8) from pose derivatives (K, m, 6), K ≤ 4."""
+def _joints_from_pose_derivatives(pd: np.ndarray, arm_distance) -> np.ndarray:
+    """Joint values and derivatives (K, m, 8) from pose derivatives (K, m, 6), K ≤ 4.
+
+    ``arm_distance``: D_2, or the offsets (S,) of a cabin's S supports along its axis (the
+    first 0): then (K, m, 4 S), support by support, each support after the first with the
+    right arm's joints at its own end ``K_L + o u`` (conventions §4)."""
     n = pd.shape[0]
     full = np.zeros((4,) + pd.shape[1:])
     full[:n] = pd
     u = _axis_derivatives(full[:, :, 3], full[:, :, 4])[:n]  # (n, m, 3)
-    right = pd[:, :, :3] + float(arm_distance) * u  # K_R and its derivatives (task XYZ)
-    # The constant parts of K_R enter only derivative 0, which `right` already carries.
     x, y, z, g = pd[:, :, 0], pd[:, :, 1], pd[:, :, 2], pd[:, :, 5]
-    xr, yr, zr = right[:, :, 0], right[:, :, 1], right[:, :, 2]
-    return np.stack([-z, y, -x, g, zr, yr, -xr, -g], axis=-1)
+    out = [-z, y, -x, g]
+    offsets = [float(arm_distance)] if np.ndim(arm_distance) == 0 else [float(o) for o in arm_distance][1:]
+    for o in offsets:
+        right = pd[:, :, :3] + o * u  # this support's end and its derivatives (task XYZ)
+        # The constant parts of the end enter only derivative 0, which `right` already carries.
+        xr, yr, zr = right[:, :, 0], right[:, :, 1], right[:, :, 2]
+        out += [zr, yr, -xr, -g]
+    return np.stack(out, axis=-1)
 
 
 def joints_of_pose(pose, arm_distance: float) -> np.ndarray:
     """Inverse kinematics (conventions §4) of poses (..., 6) → joints (..., 8)."""
     pose = np.asarray(pose, dtype=np.float64)
     flat = pose.reshape(1, -1, N_POSE)
-    return _joints_from_pose_derivatives(flat, arm_distance)[0].reshape(pose.shape[:-1] + (8,))
+    return _joints_from_pose_derivatives(flat, arm_distance)[0].reshape(pose.shape[:-1] + (-1,))
 
 
 def joint_derivatives(x, start, goal, arm_distance: float, t) -> np.ndarray:
@@ -273,7 +281,7 @@ def dense_quantity_maxima(
     t = np.union1d(np.linspace(0.0, T, int(n_samples)), kn)
     if home is None:
         home = default_home(start, goal, arm_distance)
-    home = np.asarray(home, dtype=np.float64).reshape(N_JOINTS)
+    home = np.asarray(home, dtype=np.float64).reshape(-1)
 
     def quantities(tt):
         qd = joint_derivatives(x, start, goal, arm_distance, tt)
@@ -297,7 +305,7 @@ def dense_columns(x, start, goal, arm_distance: float, limits, home=None, n_samp
     velocity, acceleration) or 4 (and jerk). Column ``K j + k`` = max_t |quantity| / limit − 1
     (joint-major; travel about ``home``)."""
     limits = np.asarray(limits, dtype=np.float64)
-    assert limits.shape in ((N_JOINTS, 3), (N_JOINTS, 4)), limits.shape
+    assert limits.ndim == 2 and limits.shape[1] in (3, 4) and limits.shape[0] % 4 == 0, limits.shape
     maxima = dense_quantity_maxima(x, start, goal, arm_distance, home=home, n_samples=n_samples,
                                    n_kinds=limits.shape[1])
     return (maxima / limits - 1.0).reshape(-1)
@@ -346,8 +354,9 @@ def dense_feasible(
 def dense_check(problem, X, n_samples: int = 20001):
     """The dense check of a whole population for any problem-like object.
 
-    ``problem`` needs ``start``, ``goal``, ``arm_distance``, ``limits`` (8, K: 3, or 4 with
-    jerk limits), ``home`` (8,) and ``n_var``; nothing of it is called, so no dockjax code
+    ``problem`` needs ``start``, ``goal``, ``arm_distance`` (or ``supports``, the offsets of
+    a cabin's supports), ``limits`` (8 or 4 per support, K: 3, or 4 with jerk limits),
+    ``home`` (8,) and ``n_var``; nothing of it is called, so no dockjax code
     runs. X: (n, n_var), in the reduced setting (n_var 6) the interior points are put on the
     line. Returns ``(G (n, 8 K), feasible (n,) bool)`` (8 K = 24 without jerk limits).
     """
@@ -362,7 +371,8 @@ def dense_check(problem, X, n_samples: int = 20001):
     for x in X:
         if getattr(problem, "reduced", x.shape == (N_INTERVALS,)):
             x = reduced_to_full(x, start, goal)
-        G.append(dense_columns(x, start, goal, float(problem.arm_distance), limits, home=np.asarray(problem.home),
-                               n_samples=n_samples))
-    G = np.array(G).reshape(len(X), N_JOINTS * limits.shape[1])
+        ends = getattr(problem, "supports", None)
+        ends = float(problem.arm_distance) if ends is None else np.asarray(ends, np.float64)
+        G.append(dense_columns(x, start, goal, ends, limits, home=np.asarray(problem.home), n_samples=n_samples))
+    G = np.array(G).reshape(len(X), limits.size)
     return G, np.all(G <= 0.0, axis=1)
