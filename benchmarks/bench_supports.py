@@ -8,8 +8,8 @@ paper's two arms; three supports at 0, 1000 and 2000 mm with the paper's limits;
 with the middle support's lateral joint limited to 1.2 mm/s; four supports at 0, 700,
 1400 and 2000 mm. Per cabin, printed as one table: the right-arm treatment ``"auto"``
 chose, the shortest-time plan and the compromise plan of :func:`dockjax.plan.plan` (T,
-jerk, the binding limits, each plan's wall time, warm: the second of two runs), and the
-scoring time of ``--rows`` random candidates of the decision box with every span through
+jerk, the binding limits, each plan's wall time: the median of ``--repeats`` after one
+untimed run), and the scoring time of ``--rows`` random candidates of the decision box with every span through
 the root chain (``evaluate(screen=False)``, the only path of a cabin on more supports),
 the median of ``--repeats``, as a ratio to the two arms' in the same run.
 """
@@ -34,12 +34,14 @@ CABINS = (
 )
 
 
-def _warm(f):
-    """(result, wall time of the second of two calls)."""
-    f()
-    t0 = time.perf_counter()
-    out = f()
-    return out, time.perf_counter() - t0
+def _timed(f, repeats: int):
+    """(result, median wall time of ``repeats`` calls after one untimed call)."""
+    out, times = f(), []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t0)
+    return out, float(np.median(times))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -67,10 +69,10 @@ def main(argv: list[str] | None = None) -> None:
             times.append(time.perf_counter() - t0)
         score = float(np.median(times[1:]))
         base = score if base is None else base
-        fast, t_fast = _warm(lambda p=problem: plan(p, weights=(1, 0), rate=a.rate, n_front=a.n_front,
-                                                       check_sensitivities=False))
-        comp, t_comp = _warm(lambda p=problem: plan(p, weights=(1, 1), rate=a.rate, n_front=a.n_front,
-                                                       check_sensitivities=False))
+        fast, t_fast = _timed(lambda p=problem: plan(p, weights=(1, 0), rate=a.rate, n_front=a.n_front,
+                                                     check_sensitivities=False), a.repeats)
+        comp, t_comp = _timed(lambda p=problem: plan(p, weights=(1, 1), rate=a.rate, n_front=a.n_front,
+                                                     check_sensitivities=False), a.repeats)
         binding = ", ".join(b["limit"] for b in fast.explanation["binding"]) or "none"
         print(f"| {name} | {problem.right_arm} | {fast.T:.3f} | {binding} | {comp.jerk:.4f} | {comp.T:.3f} "
               f"| {t_fast:.2f}, {t_comp:.2f} | {score / base:.2f} |", flush=True)
