@@ -54,8 +54,9 @@ import optax
 from . import checks
 from .decoding import spans
 from .limits import columns, maxima, maxima_screened
-from .objectives import jerk
+from .objectives import cabin_jerk
 from .problem import DockingProblem, bucket_rows, pad_rows
+from .robot import join_pairs
 from .store import stored_jit
 
 __all__ = ["RefineResult", "refine", "polish", "check_settings", "objectives_safe"]
@@ -104,10 +105,10 @@ def objectives_safe(problem: DockingProblem, x, screen: bool = False):
     if problem.right_arm == "taylor":
         problem = problem.with_right_arm("bound")
     h, _, c, ref = spans(problem, x)
-    rb = problem.robot
-    F = jnp.stack([jnp.sum(h), jerk(rb, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)])
-    M = maxima_screened(rb, c, h, ref)[0] if screen else maxima(rb, c, h, ref)
-    return F, columns(rb, M)
+    rbs = problem.robots  # one per pair of supports (the robot, for two arms)
+    F = jnp.stack([jnp.sum(h), cabin_jerk(rbs, c, h, ref, nodes=problem.jerk_nodes, differentiable=True)])
+    M = join_pairs([maxima_screened(rb, c, h, ref)[0] if screen else maxima(rb, c, h, ref) for rb in rbs])
+    return F, columns(rbs[0], M, problem.limits)
 
 
 # -- projection onto the box with a time cap ----------------------------------------------

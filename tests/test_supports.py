@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dockjax import cli
 from dockjax.bulk import plan_batch
@@ -55,6 +57,20 @@ def test_every_column_of_a_cabin_on_more_supports_is_certified(supports, mode):
         T, jerk = R.reference_objectives(x, problem.start, problem.goal, supports)
         assert f[0] == pytest.approx(T, rel=1e-12)
         assert f[1] == pytest.approx(jerk, rel=1e-9)
+
+
+@settings(max_examples=12, deadline=None)
+@given(gaps=st.lists(st.floats(50.0, 3000.0), min_size=2, max_size=2), seed=st.integers(0, 2**31 - 1),
+       turn=st.floats(-3.0, 3.0))
+def test_no_column_of_three_supports_is_understated_anywhere(gaps, seed, turn):
+    supports = (0.0, gaps[0], gaps[0] + gaps[1])
+    goal = np.array([745, -5, -1515, turn, -turn, 180])
+    problem = DockingProblem(supports=supports, goal=goal, right_arm="bound",
+                             travel=[600, 200, 200, 15])
+    X = _box_rows(problem, 2, seed)
+    _, G = problem.evaluate(X)
+    G_ref, _ = R.dense_check(problem, X, n_samples=4001)
+    assert np.all(G >= G_ref - 1e-12), (G - G_ref).min()
 
 
 def test_a_three_support_cabin_plans_certified_with_its_own_limits():
