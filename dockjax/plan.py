@@ -143,6 +143,14 @@ BINDING = 1e-3
 FRONT_ITER = 60
 """SQP iterations per cap of a plan's front (the chosen point is then solved to convergence)."""
 
+REPLAN_FRONT_ITER = 30
+"""SQP iterations per cap of a replan's front (:meth:`Planner.replan`). A move that starts
+in motion converges more slowly from the template's points (made for moves from rest):
+at 60 iterations every cap of the default move's replans stopped at the limit, at three
+times a plan's iterations. The front only chooses the point (Eq. 26), which is then solved
+to convergence; in the first five moves of ``benchmarks/bench_replan.py`` the choice and
+the plan are the same at 30 iterations as at 60 (at 15 three of five change)."""
+
 FD_STEP = 0.01
 """Relative change of a limit in the finite-difference check of its sensitivity."""
 
@@ -198,14 +206,15 @@ def _caps(t_min: float, t_max: float, n: int) -> np.ndarray:
     return np.geomspace(t_min, t_max, n + 1)[1:] if t_max > t_min * (1 + 1e-9) else np.zeros(0)
 
 
-def _direct_front(problem: DockingProblem, n_front: int, shortest=None, on_cap=None, seeds=None):
+def _direct_front(problem: DockingProblem, n_front: int, shortest=None, on_cap=None, seeds=None,
+                  max_iter: int = FRONT_ITER):
     """``(shortest, [least-jerk solutions at n_front caps up to the longest T])``, the front
     by continuation from the shortest-time solution, or from ``seeds`` (n_front, n_var) when
-    given (:func:`dockjax.solve.least_jerk_front`; one SQP solve per cap; ``on_cap`` is
-    called after each)."""
+    given (:func:`dockjax.solve.least_jerk_front`; one SQP solve per cap of at most
+    ``max_iter`` iterations; ``on_cap`` is called after each)."""
     shortest = _shortest(problem) if shortest is None else shortest
     caps = _caps(shortest.F[0], problem.n_intervals * problem.interval_bounds[1], n_front)
-    return shortest, solve.least_jerk_front(problem, shortest, caps, line=False, max_iter=FRONT_ITER, restarts=0,
+    return shortest, solve.least_jerk_front(problem, shortest, caps, line=False, max_iter=max_iter, restarts=0,
                                             on_cap=on_cap, seeds=seeds)
 
 
@@ -713,7 +722,8 @@ class Planner:
         continuous in position, velocity and acceleration (the new spline's first control
         points are solved from that state, :func:`dockjax.bspline.control_points`).
         ``plan`` must be of this planner's spline family (its ``n_control``). Solved as
-        :meth:`plan` solves, from the template's points carried over."""
+        :meth:`plan` solves, from the template's points carried over, with at most
+        :data:`REPLAN_FRONT_ITER` SQP iterations per cap of the front."""
         if not isinstance(plan, Plan):
             raise ValueError(f"plan must be a Plan, got {type(plan).__name__}")
         if plan.problem.n_control != self.problem.n_control:
@@ -727,31 +737,38 @@ class Planner:
                       goal=plan.problem.goal if goal is None else goal)
         problem = DockingProblem(**fields)
         check_move(problem)
-        return self._solve(problem, w, replanned_at_s=float(t))
+        return self._solve(problem, w, REPLAN_FRONT_ITER, template_first=True, replanned_at_s=float(t))
 
-    def _solve(self, problem: DockingProblem, w, **extra) -> Plan:
+    def _solve(self, problem: DockingProblem, w, front_iter: int = FRONT_ITER, template_first: bool = False,
+               **extra) -> Plan:
         """:meth:`plan`'s solve of ``problem`` (checked) at weights ``w``, from the
-        template's points carried over."""
+        template's points carried over, each cap of the front in at most ``front_iter`` SQP
+        iterations, the shortest time from the template's point before the straight line's
+        with ``template_first``; ``extra`` goes into the settings."""
         self.warm()
         X = solve.map_to(problem, self.problem, self._template)
         first = solve.certify_scaling(problem, X[0])
-        # the time programme is not convex: from plan()'s own start (the straight line), and
-        # from the template's shortest-time point where it certifies; the shorter is kept
-        found, error = [], None
-        for x0 in [None] + ([] if first is None else [first[0]]):
+        # the time programme is not convex: from plan()'s own start (the straight line) and
+        # from the template's shortest-time point where it certifies, the shorter kept (plan()'s
+        # at a tie); a replan takes the template's first. A second start gets the least jerk
+        # among its shortest (the dear part) only when its time programme alone ends shorter
+        starts = [None] + ([] if first is None else [first[0]])
+        shortest, error = None, None
+        for x0 in starts[::-1] if template_first else starts:
             try:
-                found.append(_shortest(problem, x0))
+                if shortest is not None and _shortest(problem, x0, smooth=False).F[0] >= shortest.F[0] * (1 - 1e-9):
+                    continue
+                found = _shortest(problem, x0)
+                if shortest is None or found.F[0] < shortest.F[0] * (1 - 1e-9):
+                    shortest = found
             except PlanError as e:
-                error = e
-        if not found:
+                error = error or e
+        if shortest is None:
             raise error
-        shortest = found[0]
-        if len(found) == 2 and found[1].F[0] < shortest.F[0] * (1 - 1e-9):
-            shortest = found[1]
         sols = [shortest]
         if w[1] != 0:
             seeds = X[1:] if len(X) == self.n_front + 1 else None  # a template cap without an answer: by continuation
-            sols += _direct_front(problem, self.n_front, shortest, seeds=seeds)[1]
+            sols += _direct_front(problem, self.n_front, shortest, seeds=seeds, max_iter=front_iter)[1]
         chosen = _choice(problem, sols, w)
         samples = _certify(problem, chosen.x, self.rate)
         why = explain(problem, chosen, samples, time_optimal=chosen is shortest, check=False)
