@@ -152,6 +152,8 @@ def stage_problems(problem: DockingProblem, vias) -> list[DockingProblem]:
     cannot be planned (a point outside the travel about home, or a stage that does not
     move)."""
     vias = check_vias(vias)
+    if problem.supports is not None:
+        raise ValueError(f"staged moves are for the paper's two arms; this cabin has {problem.n_supports} supports")
     points = [np.asarray(problem.start)] + [v.pose for v in vias] + [np.asarray(problem.goal)]
     base = {k: v for k, v in problem.identity().items()
             if k not in ("start", "goal", "travel", "velocity", "acceleration", "jerk", *BOUNDARY_FIELDS)}

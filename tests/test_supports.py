@@ -17,6 +17,7 @@ from dockjax import cli
 from dockjax.bulk import plan_batch
 from dockjax.plan import plan
 from dockjax.problem import DockingProblem
+from dockjax.stages import Via, stage_problems
 
 from . import reference as R
 
@@ -107,6 +108,8 @@ def test_the_paths_for_two_arms_refuse_more_supports(tmp_path):
     problem = DockingProblem(supports=THREE)
     with pytest.raises(ValueError, match="two arms; this cabin has 3 supports"):
         plan_batch(problem)
+    with pytest.raises(ValueError, match="staged moves are for the paper's two arms; this cabin has 3 supports"):
+        stage_problems(problem, [Via(pose=np.array([760, -20, -1420, 0.1, -0.1, 185]))])
     with pytest.raises(ValueError, match="one robot per pair"):
         problem.robot  # noqa: B018
     assert cli.main(["plan", "--supports", "0", "1000", "2000", "--export", "ros2", "--out", str(tmp_path / "o")]) == 2
