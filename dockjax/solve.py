@@ -715,9 +715,15 @@ def least_jerk(problem: DockingProblem, cap: float, starts, *, restarts: int = 0
     is far from the optimum and its solve the dearest); then up to ``restarts`` fresh solves
     from the best solver point (a restart renews SLSQP's curvature estimate), while they
     lower the jerk."""
-    best = None
+    best, tried = None, []
     line = [] if starts and problem.n_control > config.N_FREE else [straight_line(problem, [cap])[0]]
     for x0 in [*starts, *line]:
+        x0 = np.asarray(x0, np.float64)
+        # a start equal to an earlier one to rounding (the time programme's answer where it
+        # is the straight line) ends where that one did
+        if any(np.allclose(x0, t, rtol=1e-12, atol=0.0) for t in tried):
+            continue
+        tried.append(x0)
         s = min_jerk(problem, x0, cap, tol=tol, max_iter=max_iter)
         if s is not None and (best is None or s.F[1] < best.F[1]):
             best = s
