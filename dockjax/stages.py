@@ -182,24 +182,37 @@ def _with_states(problems, through):
     return out
 
 
+def _via_states(z, through, offset: int, scales) -> dict:
+    """``{via index: (velocity (6,), acceleration (6,))}`` of each via passed through, read
+    from the programme's vector z from ``offset`` on, in units of ``scales`` (2, 6)."""
+    states = {}
+    for i, t in enumerate(through):
+        if t:
+            states[i] = (z[offset:offset + 6] * scales[0], z[offset + 6:offset + 12] * scales[1])
+            offset += 12
+    return states
+
+
+def _end_states(k: int, states: dict) -> dict:
+    """Stage k's boundary fields set by the vias passed through at its ends (:func:`_via_states`)."""
+    kw = {}
+    if k - 1 in states:
+        kw.update(start_velocity=states[k - 1][0], start_acceleration=states[k - 1][1])
+    if k in states:
+        kw.update(goal_velocity=states[k][0], goal_acceleration=states[k][1])
+    return kw
+
+
 def _split(problems, z, scales, layout):
     """``[(stage problem with its ends' states, x_k)]`` of the programme's vector z: each
     stage's unit-box coordinates, then (v, a) of each via passed through, in units of
     ``scales`` (2, 6)."""
     n_var, through = layout
-    states, off = {}, len(problems) * n_var
-    for i, t in enumerate(through):
-        if t:
-            states[i] = (z[off:off + 6] * scales[0], z[off + 6:off + 12] * scales[1])
-            off += 12
+    states = _via_states(z, through, len(problems) * n_var, scales)
     out = []
     for k, p in enumerate(problems):
         u = z[k * n_var:(k + 1) * n_var]
-        kw = {}
-        if k - 1 in states:
-            kw.update(start_velocity=states[k - 1][0], start_acceleration=states[k - 1][1])
-        if k in states:
-            kw.update(goal_velocity=states[k][0], goal_acceleration=states[k][1])
+        kw = _end_states(k, states)
         out.append((dataclasses.replace(p, **kw) if kw else p, p.lower + u * (p.upper - p.lower)))
     return out
 
@@ -262,21 +275,12 @@ class _Programme:
         """``(xs, states)`` of z (NumPy)."""
         n = self.problems[0].n_var
         xs = [p.lower + z[k * n:(k + 1) * n] * (p.upper - p.lower) for k, p in enumerate(self.problems)]
-        states, off = {}, len(self.problems) * n
-        for i, t in enumerate(self.through):
-            if t:
-                states[i] = (z[off:off + 6] * self.scales[0], z[off + 6:off + 12] * self.scales[1])
-                off += 12
-        return xs, states
+        return xs, _via_states(z, self.through, len(self.problems) * n, self.scales)
 
     def stage(self, k: int, states: dict) -> DockingProblem:
         """Stage k's problem with its ends' states."""
         p = self.problems[k]
-        kw = {}
-        if k - 1 in states:
-            kw.update(start_velocity=states[k - 1][0], start_acceleration=states[k - 1][1])
-        if k in states:
-            kw.update(goal_velocity=states[k][0], goal_acceleration=states[k][1])
+        kw = _end_states(k, states)
         if not kw:
             return p
         rest = np.zeros(6)
