@@ -143,13 +143,16 @@ BINDING = 1e-3
 FRONT_ITER = 60
 """SQP iterations per cap of a plan's front (the chosen point is then solved to convergence)."""
 
-REPLAN_FRONT_ITER = 30
-"""SQP iterations per cap of a replan's front (:meth:`Planner.replan`). A move that starts
-in motion converges more slowly from the template's points (made for moves from rest):
-at 60 iterations every cap of the default move's replans stopped at the limit, at three
-times a plan's iterations. The front only chooses the point (Eq. 26), which is then solved
-to convergence; in the first five moves of ``benchmarks/bench_replan.py`` the choice and
-the plan are the same at 30 iterations as at 60 (at 15 three of five change)."""
+REPLAN_FRONT_ITER = 20
+"""SQP iterations per cap of a replan's front (:meth:`Planner.replan`), each cap from the
+replan's own shortest-time solution slowed to the cap. The template's points, made for
+moves from rest, are farther from the least-jerk trajectories of a move that starts in
+motion: over the 32 caps of the first four replans of ``benchmarks/bench_replan.py``, 30
+iterations from them leave a cap's jerk 0.7 % above its converged value (median; at most
+1.7 %), 20 from the slowed shortest-time solution 0.3 % (at most 0.7 %). The front
+only chooses the point (Eq. 26), which is then solved to convergence; in the 12 moves of
+``benchmarks/bench_replan.py``, 15, 20 and 30 iterations give the choice and the plan of
+fronts solved to convergence."""
 
 FD_STEP = 0.01
 """Relative change of a limit in the finite-difference check of its sensitivity."""
@@ -722,8 +725,9 @@ class Planner:
         continuous in position, velocity and acceleration (the new spline's first control
         points are solved from that state, :func:`dockjax.bspline.control_points`).
         ``plan`` must be of this planner's spline family (its ``n_control``). Solved as
-        :meth:`plan` solves, from the template's points carried over, with at most
-        :data:`REPLAN_FRONT_ITER` SQP iterations per cap of the front."""
+        :meth:`plan` solves, except that each cap of the front starts from the new move's
+        shortest-time solution slowed to the cap, with at most :data:`REPLAN_FRONT_ITER` SQP
+        iterations."""
         if not isinstance(plan, Plan):
             raise ValueError(f"plan must be a Plan, got {type(plan).__name__}")
         if plan.problem.n_control != self.problem.n_control:
@@ -737,24 +741,23 @@ class Planner:
                       goal=plan.problem.goal if goal is None else goal)
         problem = DockingProblem(**fields)
         check_move(problem)
-        return self._solve(problem, w, REPLAN_FRONT_ITER, template_first=True, replanned_at_s=float(t))
+        return self._solve(problem, w, in_motion=True, replanned_at_s=float(t))
 
-    def _solve(self, problem: DockingProblem, w, front_iter: int = FRONT_ITER, template_first: bool = False,
-               **extra) -> Plan:
-        """:meth:`plan`'s solve of ``problem`` (checked) at weights ``w``, from the
-        template's points carried over, each cap of the front in at most ``front_iter`` SQP
-        iterations, the shortest time from the template's point before the straight line's
-        with ``template_first``; ``extra`` goes into the settings."""
+    def _solve(self, problem: DockingProblem, w, in_motion: bool = False, **extra) -> Plan:
+        """:meth:`plan`'s solve of ``problem`` (checked) at weights ``w``: the shortest time
+        from the straight line and from the template's point carried over; each cap of the
+        front from the template's point carried over in at most :data:`FRONT_ITER` SQP
+        iterations, or, ``in_motion``, from the shortest-time solution slowed to the cap in
+        at most :data:`REPLAN_FRONT_ITER`; ``extra`` goes into the settings."""
         self.warm()
         X = solve.map_to(problem, self.problem, self._template)
         first = solve.certify_scaling(problem, X[0])
         # the time programme is not convex: from plan()'s own start (the straight line) and
         # from the template's shortest-time point where it certifies, the shorter kept (plan()'s
-        # at a tie); a replan takes the template's first. A second start gets the least jerk
-        # among its shortest (the dear part) only when its time programme alone ends shorter
-        starts = [None] + ([] if first is None else [first[0]])
+        # at a tie). The second start gets the least jerk among its shortest (the dear part)
+        # only when its time programme alone ends shorter
         shortest, error = None, None
-        for x0 in starts[::-1] if template_first else starts:
+        for x0 in [None] + ([] if first is None else [first[0]]):
             try:
                 if shortest is not None and _shortest(problem, x0, smooth=False).F[0] >= shortest.F[0] * (1 - 1e-9):
                     continue
@@ -767,7 +770,10 @@ class Planner:
             raise error
         sols = [shortest]
         if w[1] != 0:
-            seeds = X[1:] if len(X) == self.n_front + 1 else None  # a template cap without an answer: by continuation
+            if in_motion:  # the template's points are moves from rest; this move's own shortest is nearer
+                seeds, front_iter = np.repeat(shortest.x[None], self.n_front, 0), REPLAN_FRONT_ITER
+            else:  # a template cap without an answer: by continuation
+                seeds, front_iter = (X[1:] if len(X) == self.n_front + 1 else None), FRONT_ITER
             sols += _direct_front(problem, self.n_front, shortest, seeds=seeds, max_iter=front_iter)[1]
         chosen = _choice(problem, sols, w)
         samples = _certify(problem, chosen.x, self.rate)

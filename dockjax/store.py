@@ -156,6 +156,19 @@ def _plain_leaf(leaf) -> bool:
     return isinstance(leaf, (np.ndarray, np.generic, bool, int, float, complex))
 
 
+def _leaf_signature(leaf):
+    """What decides a :func:`_plain_leaf`'s abstract value under a given tracing
+    configuration (``jax.typeof``: shape, dtype, weak type), cheaper to form than that
+    value: a JAX array's abstract value; a NumPy array's or scalar's type, shape and dtype;
+    a Python number's type (Python numbers are weakly typed). None for a leaf the store
+    cannot take."""
+    if not _plain_leaf(leaf):
+        return None
+    if isinstance(leaf, jax.Array):
+        return type(leaf), leaf.aval
+    return type(leaf), getattr(leaf, "shape", None), getattr(leaf, "dtype", None)
+
+
 class StoredFunction:
     """``jax.jit(fun, static_argnums=...)`` whose compiled programs are kept in the store
     (:func:`stored_jit`). Attributes of the jitted function (``lower``, ``trace``, ...)
@@ -175,12 +188,13 @@ class StoredFunction:
         static = tuple(args[i] for i in self.static_argnums)
         dynamic = tuple(a for i, a in enumerate(args) if i not in self.static_argnums)
         leaves, tree = jax.tree.flatten(dynamic)
-        if not all(_plain_leaf(leaf) for leaf in leaves):
+        signature = tuple(map(_leaf_signature, leaves))
+        if None in signature:
             return self.jitted(*args)
-        avals = tuple(jax.typeof(leaf) for leaf in leaves)
-        memo = (static, tree, avals, jax_config.trace_context())
+        memo = (static, tree, signature, jax_config.trace_context())
         program = self._loaded.get(memo)
         if program is None:
+            avals = tuple(jax.typeof(leaf) for leaf in leaves)
             found = self._program(args, static, tree, avals)
             if found is None:
                 return self.jitted(*args)
