@@ -113,6 +113,15 @@ def test_a_replan_at_a_third_joins_continuously_and_is_certified(replanned):
                                                                                   "acceleration")[k]]).max()))
 
 
+def test_a_replan_chooses_the_plan_that_plan_gives_on_its_move(replanned):
+    # the replan's front starts from its own shortest slowed to each cap, in fewer SQP
+    # iterations; plan() solves the same move from the straight line by continuation
+    _, second, _ = replanned
+    direct = plan(second.problem, rate=100, n_front=3, check_sensitivities=False)
+    assert second.T == pytest.approx(direct.T, rel=1e-3)
+    assert second.jerk == pytest.approx(direct.jerk, rel=1e-3)
+
+
 def test_replan_refuses_a_time_outside_the_plan_and_a_plan_of_another_family(replanned):
     first, _, _ = replanned
     planner = Planner(DockingProblem(), rate=100, n_front=3)
