@@ -150,9 +150,9 @@ moves from rest, are farther from the least-jerk trajectories of a move that sta
 motion: over the 32 caps of the first four replans of ``benchmarks/bench_replan.py``, 30
 iterations from them leave a cap's jerk 0.7 % above its converged value (median; at most
 1.7 %), 20 from the slowed shortest-time solution 0.3 % (at most 0.7 %). The front
-only chooses the point (Eq. 26), which is then solved to convergence; in the 12 moves of
-``benchmarks/bench_replan.py``, 15, 20 and 30 iterations give the choice and the plan of
-fronts solved to convergence."""
+only chooses the point (Eq. 26), which is then solved to convergence; in the first 12
+moves of ``benchmarks/bench_replan.py --moves 12``, 15, 20 and 30 iterations give the
+choice and the plan of fronts solved to convergence."""
 
 FD_STEP = 0.01
 """Relative change of a limit in the finite-difference check of its sensitivity."""

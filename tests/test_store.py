@@ -15,6 +15,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from dockjax import store
 from dockjax.pytrees import pytree_dataclass, static
@@ -142,6 +144,32 @@ def test_whatever_decides_the_program_gives_another_key(folder, monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", os.environ.get("XLA_FLAGS", "") + " --xla_cpu_enable_fast_min_max=false")
     new_file(lambda: store.stored_jit(_kernel)(spec, x))  # the XLA flags
     assert seen <= set(_files(folder))
+
+
+LEAVES = st.sampled_from([
+    lambda: 0.5, lambda: 2, lambda: True, lambda: 1j, lambda: np.float64(0.5), lambda: np.float32(0.5),
+    lambda: np.int32(2), lambda: np.bool_(True), lambda: np.zeros(3), lambda: np.zeros(3, np.float32),
+    lambda: np.zeros((3, 1)), lambda: np.zeros(4), lambda: np.zeros(3, np.int64), lambda: jnp.zeros(3),
+    lambda: jnp.zeros(3, jnp.int32), lambda: jnp.asarray(0.5), lambda: jnp.zeros(4)])
+
+
+@given(a=LEAVES, b=LEAVES, x64=st.booleans())
+def test_leaves_of_one_signature_have_one_abstract_value(a, b, x64):
+    # the calls of a process reuse a loaded program by the leaves' signature: it must
+    # decide what jax.typeof (the reference) gives, in either precision mode
+    with jax.enable_x64(x64):
+        u, v = a(), b()
+        if store._leaf_signature(u) == store._leaf_signature(v):
+            assert jax.typeof(u) == jax.typeof(v), (u, v)
+
+
+def test_a_process_runs_each_abstract_value_with_its_own_program(folder):
+    f = store.stored_jit(_kernel)
+    spec = _Spec(np.ones(3))
+    for x in (0.5, np.float32(0.5), np.float64(0.5), np.ones(3), np.ones(3, np.float32), jnp.ones(3)):
+        for x64 in (False, True):
+            with jax.enable_x64(x64):
+                _equal(f(spec, x), jax.jit(_kernel)(spec, x))
 
 
 def test_a_damaged_file_is_compiled_again_and_replaced(folder):
