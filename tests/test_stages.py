@@ -152,7 +152,8 @@ def _independent_min_time(points, limits, home, arm, through: bool) -> float:
     """The shortest time of a chain of stages through ``points`` (at rest at its ends; at
     the inner point at rest, or passed through with its velocity and acceleration free when
     ``through``), the paper's family: SciPy's SLSQP from straight lines of 30 s per stage,
-    finite-difference gradients, sampled limits. Control points within the start-to-goal
+    finite-difference gradients, sampled limits, restarted from where it stops until it
+    reports success (at most four solves). Control points within the start-to-goal
     box of each stage widened by 10 % of its move (1e-3 where it does not move), intervals
     within BOUNDS, via states within ±30 mm/s (°/s) and ±30 mm/s² (°/s²)."""
     lo, hi, n_st = [], [], len(points) - 1
@@ -183,9 +184,14 @@ def _independent_min_time(points, limits, home, arm, through: bool) -> float:
     sel = np.zeros(len(lo))
     for k in range(n_st):
         sel[36 * k:36 * k + 6] = w[36 * k:36 * k + 6]
-    res = minimize(lambda u: sel @ u, (z0 - lo) / w, jac=lambda u: sel, method="SLSQP", bounds=[(0, 1)] * len(lo),
-                   constraints=[{"type": "ineq", "fun": lambda u: -_sampled(*unpack(u), limits, home, arm)}],
-                   options={"maxiter": 400, "ftol": 1e-10})
+    u = (z0 - lo) / w
+    for _ in range(4):  # SLSQP may stop at a degenerate QP ("constraints incompatible"): go on from its point
+        res = minimize(lambda u: sel @ u, u, jac=lambda u: sel, method="SLSQP", bounds=[(0, 1)] * len(lo),
+                       constraints=[{"type": "ineq", "fun": lambda u: -_sampled(*unpack(u), limits, home, arm)}],
+                       options={"maxiter": 400, "ftol": 1e-10})
+        u = res.x
+        if res.success:
+            break
     assert res.success, res.message
     assert _sampled(*unpack(res.x), limits, home, arm).max() <= 1e-6
     return float(sel @ res.x + sum(lo[36 * k:36 * k + 6].sum() for k in range(n_st)))
