@@ -448,7 +448,7 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
             a = np.zeros_like(u0)
             a[:n] = -wh
             cons.append({"type": "ineq", "fun": lambda u: b + a @ u, "jac": lambda u: a})
-        last = None
+        last, last_res = None, None
         for _ in range(1 + restarts):  # a restart renews SLSQP's curvature estimate, while it helps
             res = minimize(lambda u: values(u)[0], u0, jac=lambda u: values(u)[1], method="SLSQP",
                            bounds=list(zip(np.zeros_like(top), top)), constraints=cons,
@@ -459,8 +459,9 @@ def _slsqp(problem, x0, kind, cap, scale, tol, max_iter, restarts=RESTARTS, room
             u0 = np.clip(res.x, 0.0, top)
             now = (float(values(u0)[0]), float(max(np.max(values(u0)[2]), 0.0)))
             if last is not None and not _progress(last, now):
+                res = last_res  # the restart did no better (it may have left the limits): keep the answer before it
                 break
-            last = now
+            last, last_res = now, res
         if keep is None:
             break
         u0 = np.clip(res.x, 0.0, top)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-from scipy.optimize import minimize
+from scipy.optimize import OptimizeResult, minimize
 
 from dockjax import plan as P
 from dockjax import solve
@@ -270,6 +270,31 @@ def test_a_plan_of_a_given_duration_is_never_jerkier_than_its_certified_start(wi
     why = P.explain(WIDE, sol, P._certify(WIDE, sol.x, 100.0), time_optimal=False, check=False)
     assert why["d_jerk_d_T"] is None and "d jerk / d T = unknown" in P.explain_text(why)
     assert P._least_jerk_of_duration(WIDE, T, []) is None
+
+
+def test_a_restart_that_does_no_better_does_not_replace_the_answer_before_it(monkeypatch):
+    """SLSQP restarted from a solve that stopped short: when the restart ends with a longer
+    time and further outside the limits, the answer before it stands. (Seen on the least
+    jerk at the shortest time with knot intervals in [0.05, 30] s: the restart's point,
+    certified, was slowed from 12.06 s to 19.3 s.) SciPy's solver is replaced by one that
+    stops at a feasible slow line, then at a point outside every box corner's limits."""
+    problem = DockingProblem()
+    lo, width = problem.lower, problem.upper - problem.lower
+    x_a = solve.straight_line(problem, [40.0])[0]
+    u_a = (x_a - lo) / width
+    u_b = np.concatenate([np.ones(6), np.zeros(problem.n_var - 6)])  # slower, and every control point at a corner
+    assert R.reference_objectives(lo + u_b * width, problem.start, problem.goal, problem.arm_distance)[0] > 40.0
+    assert not R.dense_check(problem, (lo + u_b * width)[None], n_samples=2001)[1][0]
+    assert R.dense_check(problem, x_a[None], n_samples=2001)[1][0]
+    answers = iter([u_a, u_b, u_b, u_b])
+
+    def stopped(fun, u0, **_):
+        return OptimizeResult(x=next(answers), success=False, nit=1, message="stopped", fun=fun(u0))
+
+    monkeypatch.setattr(solve, "minimize", stopped)
+    x, res, _ = solve._slsqp(problem, x_a, "time", None, 1.0, 1e-12, 10)
+    np.testing.assert_allclose(x, x_a, rtol=1e-12)
+    assert res.nit == 2
 
 
 def test_a_limit_that_does_not_bind_has_no_value(wide_time_plan):
