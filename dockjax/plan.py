@@ -180,9 +180,13 @@ def _shortest(problem: DockingProblem, x0=None, *, smooth: bool = True) -> solve
     from ``x0``. By default from the straight line at the shortest T the box allows, slowed
     until feasible; with more free control points than the paper's five, from the
     shortest plan of a coarser family (:func:`_coarser`: the paper's, or with jerk limits
-    half as many points, recursively; the least jerk among its shortest trajectories),
+    half as many points, recursively; its time programme's answer, not the least jerk among
+    its shortest trajectories, which leads the finer time programme to slower answers),
     written exactly in the finer family (:func:`dockjax.solve.refine_family`), so that the
-    SQP starts at a feasible, smooth trajectory near its optimum. A move that some joint
+    SQP starts at a feasible trajectory near its optimum. Measured on the default move with
+    knot intervals in [0.05, 30] s: 32 points reach 12.0578 s from the time optimum in
+    13 s, 12.0600 s from the smoothed one in 21 s; with jerk limits, 16 points 15.219 s
+    against 15.295 s. A move that some joint
     cannot make within the longest T, whatever the trajectory
     (:func:`dockjax.solve.floor_infeasibility`), fails at once."""
     if (floor := solve.floor_infeasibility(problem)) is not None:
@@ -190,7 +194,7 @@ def _shortest(problem: DockingProblem, x0=None, *, smooth: bool = True) -> solve
     if x0 is None and problem.n_control > config.N_FREE and not problem.reduced:
         coarse = problem.with_n_control(_coarser(problem))
         try:
-            x0 = solve.refine_family(problem, coarse, _shortest(coarse).x)
+            x0 = solve.refine_family(problem, coarse, _shortest(coarse, smooth=False).x)
         except PlanError:
             x0 = None
     line = solve.straight_line(problem, [problem.n_intervals * problem.interval_bounds[0]])[0]
