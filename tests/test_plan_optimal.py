@@ -274,9 +274,10 @@ def test_a_plan_of_a_given_duration_is_never_jerkier_than_its_certified_start(wi
 
 def test_a_restart_that_does_no_better_does_not_replace_the_answer_before_it(monkeypatch):
     """SLSQP restarted from a solve that stopped short: when the restart ends with a longer
-    time and further outside the limits, the answer before it stands. (Seen on the least
-    jerk at the shortest time with knot intervals in [0.05, 30] s: the restart's point,
-    certified, was slowed from 12.06 s to 19.3 s.) SciPy's solver is replaced by one that
+    time and further outside the limits, the answer before it stands (the least jerk at the
+    shortest time with knot intervals in [0.05, 30] s, under JAX's default XLA flags, is such
+    a case: certified, the restart's point would be slowed from 12.06 s to 19.3 s). SciPy's
+    solver is replaced here by one that
     stops at a feasible slow line, then at a point outside every box corner's limits."""
     problem = DockingProblem()
     lo, width = problem.lower, problem.upper - problem.lower
